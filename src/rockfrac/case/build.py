@@ -1,0 +1,106 @@
+"""Turn a validated Case into a Model, its load stages and the quantities to report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rockfrac.case.schema import Case, CaseError, CohesiveForm
+from rockfrac.elements.groups import CohesiveEP, CohesiveRP, ElasticQ4
+from rockfrac.elements.interface_points import interface_points
+from rockfrac.fem.conditions import edge_pressure
+from rockfrac.laws.cohesive_params import CohesiveLaw
+from rockfrac.mesh import Mesh, cracked_specimen
+from rockfrac.model import Model
+from rockfrac.solve.stepping import Stage
+
+
+@dataclass
+class Built:
+    """Everything a run needs: the model, its stages and where to read the axial response."""
+
+    case: Case
+    mesh: Mesh
+    model: Model
+    stages: list[Stage]
+    top_y_dofs: np.ndarray  # prescribed axial dofs (reaction -> F_axial)
+    bulk: ElasticQ4
+    cohesive: CohesiveEP | CohesiveRP | None
+
+
+def default_augmentation(case: Case, mesh: Mesh) -> float:
+    """Augmentation r [Pa/m] of the same order as the bulk stiffness seen by the surface: E / h."""
+    x = mesh.nodes[mesh.quads]
+    area = 0.5 * np.abs(
+        np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, 1) - np.roll(x[:, :, 0], -1, 1) * x[:, :, 1], 1)
+    )
+    return float(case.bulk.E / np.sqrt(area.mean()))
+
+
+def resolve(case: Case) -> Case:
+    """Fill the defaults that depend on the model (RP augmentation and predictor stiffness)."""
+    coh = case.cohesive
+    if coh is None or coh.form is not CohesiveForm.rp:
+        return case
+    mesh = make_mesh(case)
+    r = coh.augmentation or default_augmentation(case, mesh)
+    coh = coh.model_copy(update={"augmentation": r, "k_init": coh.k_init or r})
+    return case.model_copy(update={"cohesive": coh})
+
+
+def make_mesh(case: Case, path: str = "<case>") -> Mesh:
+    m = case.mesh
+    try:
+        mesh = cracked_specimen(m.width, m.height, m.crack_angle, m.nx, m.ny, crack=m.crack)
+    except ValueError as err:
+        raise CaseError(f"{path}: [mesh] crack_angle: {err}") from None
+    problems = mesh.check()
+    if problems:
+        raise CaseError(f"{path}: [mesh]: " + "; ".join(problems))
+    return mesh
+
+
+def law_of_section(section) -> CohesiveLaw:
+    """The law's parameter object from a validated [cohesive] or [law] section."""
+    names = CohesiveLaw.__dataclass_fields__
+    return CohesiveLaw(**{k: getattr(section, k) for k in names if getattr(section, k, None) is not None})
+
+
+def build(case: Case, path: str = "<case>") -> Built:
+    """Model of the specimen: bulk Q4s, the crack's CSE group, BCs of PAPER_NOTES Sect. 7."""
+    case = resolve(case)
+    mesh = make_mesh(case, path)
+    bulk = ElasticQ4(mesh.nodes, mesh.quads, case.bulk.E, case.bulk.nu)
+    groups: list = [bulk]
+    cohesive = None
+    if case.cohesive is not None:
+        points = interface_points(mesh.nodes, mesh.interfaces)
+        law = law_of_section(case.cohesive)
+        if case.cohesive.form is CohesiveForm.ep:
+            cohesive = CohesiveEP(points, law)
+        else:
+            cohesive = CohesiveRP(points, law, case.cohesive.augmentation)
+        groups.append(cohesive)
+    bottom, top = mesh.node_sets["bottom"], mesh.node_sets["top"]
+    corner = mesh.node_sets["bottom_left"]
+    top_y = 2 * top + 1
+    dirichlet = np.concatenate([2 * bottom + 1, 2 * corner, top_y])
+    model = Model(mesh.n_nodes, groups, dirichlet)
+    stages = _stages(case, mesh, model, top_y)
+    return Built(case, mesh, model, stages, top_y, bulk, cohesive)
+
+
+def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray) -> list[Stage]:
+    load = case.loading
+    f_conf = np.zeros(model.n_dofs)
+    for side in ("left", "right"):
+        edge_pressure(mesh.nodes, mesh.edge_sets[side], load.confinement, f_conf)
+    n_d = model.dirichlet.shape[0]
+    d_conf = np.zeros(n_d)
+    d_axial = np.zeros(n_d)
+    d_axial[np.isin(model.dirichlet, top_y)] = -load.axial_displacement
+    return [
+        Stage("confinement", load.confinement_steps, d_conf, f_conf),
+        Stage("axial", load.axial_steps, d_axial, f_conf),
+    ]

@@ -1,0 +1,1 @@
+"""Element groups: bulk solids and cohesive surfaces. Each owns its dofs and its state arrays."""

@@ -1,0 +1,1 @@
+"""Finite element building blocks: quadrature, shape functions, dof maps, sparse assembly."""

@@ -1,0 +1,1 @@
+"""Pointwise constitutive laws: pure functions on arrays, no knowledge of elements."""

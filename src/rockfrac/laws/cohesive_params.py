@@ -1,0 +1,97 @@
+"""Parameter and state layouts of the cohesive traction law (paper Sect. 4.2).
+
+Kernels are Numba functions on flat float64 arrays; these integer constants name the slots.
+Local frame is ``(t, n)``; tractions in Pa, jumps in m, ``eps_*`` dimensionless.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+# --- parameter vector slots -------------------------------------------------------------
+P_CT = 0  # tangential compliance 1/kt [m/Pa]; 0 for the rigid-plastic form
+P_CN = 1  # normal compliance 1/kn [m/Pa]; 0 for the rigid-plastic form
+P_GF1 = 2  # mode I fracture energy G_f^I [J/m^2], paired with opening (Carol et al. 1997)
+P_GF2 = 3  # mode II fracture energy G_f^II [J/m^2], paired with slip
+P_CHI_P = 4  # peak tensile strength [Pa]
+P_CHI_R = 5  # residual tensile strength [Pa]
+P_C_P = 6  # peak cohesion [Pa]
+P_C_R = 7  # residual cohesion [Pa]
+P_TANPHI_P = 8  # tan of peak friction angle
+P_TANPHI_R = 9  # tan of residual friction angle
+P_TANPSI_P = 10  # tan of peak dilation angle
+P_A_CHI = 11  # softening rate of chi (dimensionless)
+P_A_C = 12  # softening rate of c
+P_A_PHI = 13  # softening rate of tan(phi)
+P_A_PSI = 14  # softening rate of tan(psi)
+P_KINIT = 15  # stiffness of the RP first-plastic-step predictor only [Pa/m]
+N_PARAMS = 16
+
+# --- state vector slots (per integration point) ------------------------------------------
+S_TT = 0  # tangential traction T_t [Pa]
+S_TN = 1  # normal traction T_n [Pa]
+S_UPT = 2  # plastic jump, tangential [m]
+S_UPN = 3  # plastic jump, normal [m]
+S_EPSN = 4  # eps_n^p, opening work / G_f^I
+S_EPSS = 5  # eps_s^p, slip work / G_f^II
+S_DGAMMA = 6  # Delta gamma of the last update [m]
+S_MODE = 7  # 0 elastic / constrained, 1 plastic
+N_STATE = 8
+
+MODE_ELASTIC = 0.0
+MODE_PLASTIC = 1.0
+
+
+@dataclass(frozen=True)
+class CohesiveLaw:
+    """Table-1 style parameters of the tension-capped hyperbolic Mohr-Coulomb law (SI, radians)."""
+
+    GfI: float
+    GfII: float
+    chi_p: float
+    chi_r: float
+    c_p: float
+    c_r: float
+    phi_p: float
+    phi_r: float
+    psi_p: float
+    alpha_chi: float
+    alpha_c: float
+    alpha_phi: float
+    alpha_psi: float
+    kn: float | None = None  # None (or inf) -> rigid-plastic form
+    kt: float | None = None
+    k_init: float = 1.0e10  # RP only: predictor stiffness of the first plastic iteration
+
+    @property
+    def rigid(self) -> bool:
+        return self.kn is None or self.kt is None or math.isinf(self.kn) or math.isinf(self.kt)
+
+    def as_array(self) -> np.ndarray:
+        p = np.zeros(N_PARAMS)
+        if not self.rigid:
+            p[P_CT] = 1.0 / self.kt
+            p[P_CN] = 1.0 / self.kn
+        p[P_GF1] = self.GfI
+        p[P_GF2] = self.GfII
+        p[P_CHI_P] = self.chi_p
+        p[P_CHI_R] = self.chi_r
+        p[P_C_P] = self.c_p
+        p[P_C_R] = self.c_r
+        p[P_TANPHI_P] = math.tan(self.phi_p)
+        p[P_TANPHI_R] = math.tan(self.phi_r)
+        p[P_TANPSI_P] = math.tan(self.psi_p)
+        p[P_A_CHI] = self.alpha_chi
+        p[P_A_C] = self.alpha_c
+        p[P_A_PHI] = self.alpha_phi
+        p[P_A_PSI] = self.alpha_psi
+        p[P_KINIT] = self.k_init
+        return p
+
+
+def initial_state(n_points: int) -> np.ndarray:
+    """Virgin state for ``n_points`` integration points, shape (n_points, N_STATE)."""
+    return np.zeros((n_points, N_STATE))

@@ -1,0 +1,93 @@
+"""The plane-strain specimen of the paper: a W x H block cut by a straight crack through its centre."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rockfrac.mesh.mesh import Mesh
+
+
+def _block(corners: np.ndarray, nx: int, ny: int, offset: int) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinearly mapped nx x ny quad grid of a convex quadrilateral (corners counter-clockwise)."""
+    xi, eta = np.meshgrid(np.linspace(0.0, 1.0, nx + 1), np.linspace(0.0, 1.0, ny + 1))
+    n = np.stack(
+        [(1 - xi) * (1 - eta), xi * (1 - eta), xi * eta, (1 - xi) * eta], axis=-1
+    )  # (ny+1, nx+1, 4)
+    nodes = (n @ corners).reshape(-1, 2)
+    ids = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1) + offset
+    quads = np.stack(
+        [ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1
+    ).reshape(-1, 4)
+    return nodes, quads
+
+
+def crack_ends(width: float, height: float, angle: float) -> tuple[float, float]:
+    """Heights [m] where a crack through the centre at ``angle`` (rad from horizontal) meets x=0, x=W."""
+    rise = 0.5 * width * math.tan(angle)
+    return 0.5 * height - rise, 0.5 * height + rise
+
+
+def cracked_specimen(
+    width: float = 0.04,
+    height: float = 0.08,
+    angle: float = math.radians(60.0),
+    nx: int = 1,
+    ny: int = 1,
+    crack: bool = True,
+) -> Mesh:
+    """Specimen with a crack through its centre at ``angle`` from horizontal (PAPER_NOTES, Sect. 7).
+
+    Each block (below and above the crack) is an ``nx`` x ``ny`` grid; the crack carries ``nx``
+    interface cells with the normal pointing up (lower block = minus side). With ``crack=False``
+    the crack nodes are merged and the mesh is the uncracked block.
+    """
+    if not (-0.5 * math.pi < angle < 0.5 * math.pi):
+        raise ValueError("crack angle must lie strictly between -pi/2 and pi/2 rad")
+    y_left, y_right = crack_ends(width, height, angle)
+    if not (0.0 < y_left < height and 0.0 < y_right < height):
+        raise ValueError(
+            f"a crack at {math.degrees(angle):.2f} deg through the centre of a {width} x {height} m "
+            "specimen must cut its left and right edges; lower the angle or raise the height"
+        )
+    lower = np.array([[0.0, 0.0], [width, 0.0], [width, y_right], [0.0, y_left]])
+    upper = np.array([[0.0, y_left], [width, y_right], [width, height], [0.0, height]])
+    n_lower = (nx + 1) * (ny + 1)
+    xl, ql = _block(lower, nx, ny, 0)
+    xu, qu = _block(upper, nx, ny, n_lower)
+    nodes = np.vstack([xl, xu])
+    quads = np.vstack([ql, qu])
+    crack_minus = np.arange(ny * (nx + 1), n_lower)  # top row of the lower block
+    crack_plus = n_lower + np.arange(nx + 1)  # bottom row of the upper block
+    if crack:
+        interfaces = np.stack(
+            [crack_minus[:-1], crack_minus[1:], crack_plus[:-1], crack_plus[1:]], axis=-1
+        )
+    else:
+        remap = np.arange(nodes.shape[0])
+        remap[crack_plus] = crack_minus
+        keep = np.ones(nodes.shape[0], dtype=bool)
+        keep[crack_plus] = False
+        new_index = np.cumsum(keep) - 1
+        quads = new_index[remap[quads]]
+        nodes = nodes[keep]
+        interfaces = np.zeros((0, 4), dtype=np.int64)
+    return Mesh(nodes=nodes, quads=quads, interfaces=interfaces, **_boundary_groups(nodes, quads, width, height))
+
+
+def _boundary_groups(nodes: np.ndarray, quads: np.ndarray, width: float, height: float) -> dict:
+    """Node and edge sets of the rectangle's sides, found geometrically."""
+    tol = 1e-9 * max(width, height)
+    x, y = nodes[:, 0], nodes[:, 1]
+    sides = {
+        "bottom": np.abs(y) < tol,
+        "top": np.abs(y - height) < tol,
+        "left": np.abs(x) < tol,
+        "right": np.abs(x - width) < tol,
+    }
+    node_sets = {name: np.flatnonzero(mask) for name, mask in sides.items()}
+    node_sets["bottom_left"] = np.flatnonzero(sides["bottom"] & sides["left"])
+    edges = np.stack([quads, np.roll(quads, -1, axis=1)], axis=-1).reshape(-1, 2)
+    edge_sets = {name: edges[mask[edges].all(axis=1)] for name, mask in sides.items()}
+    return {"node_sets": node_sets, "edge_sets": edge_sets}

@@ -1,0 +1,1 @@
+"""Writers: history and point CSV files, logs, figures."""

@@ -1,0 +1,1 @@
+"""Solvers: linear backends, Newton-Raphson, load stepping with cutback."""

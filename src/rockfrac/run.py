@@ -52,6 +52,7 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
         "F_axial": -float(reaction),
         "newton_iterations": info.newton.iterations,
         "cutbacks": info.cutbacks,
+        "control": info.controlled_by,
     }
     if rec is not None:
         for k in ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi"):

@@ -6,14 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rockfrac.case.schema import Case, CaseError, CohesiveForm
-from rockfrac.elements.groups import CohesiveEP, CohesiveRP, ElasticQ4
+from rockfrac.case.schema import Case, CaseError, CohesiveForm, Control
+from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
+from rockfrac.elements.solid import ElasticQ4
 from rockfrac.elements.interface_points import interface_points
 from rockfrac.fem.conditions import edge_pressure
 from rockfrac.laws.cohesive_params import CohesiveLaw
 from rockfrac.mesh import Mesh, cracked_specimen
 from rockfrac.model import Model
-from rockfrac.solve.stepping import Stage
+from rockfrac.solve.stepping import PathSpec, Stage
 
 
 @dataclass
@@ -39,7 +40,13 @@ def default_augmentation(case: Case, mesh: Mesh) -> float:
 
 
 def resolve(case: Case) -> Case:
-    """Fill the defaults that depend on the model (RP augmentation and predictor stiffness)."""
+    """Fill the defaults that depend on the case (path-control sizes, RP augmentation)."""
+    load = case.loading
+    if load.control is Control.path:
+        nominal = abs(load.axial_displacement) / load.axial_steps
+        load = load.model_copy(update={"path_increment": load.path_increment or nominal,
+                                       "max_steps": load.max_steps or 20 * load.axial_steps})
+        case = case.model_copy(update={"loading": load})
     coh = case.cohesive
     if coh is None or coh.form is not CohesiveForm.rp:
         return case
@@ -87,11 +94,11 @@ def build(case: Case, path: str = "<case>") -> Built:
     top_y = 2 * top + 1
     dirichlet = np.concatenate([2 * bottom + 1, 2 * corner, top_y])
     model = Model(mesh.n_nodes, groups, dirichlet)
-    stages = _stages(case, mesh, model, top_y)
+    stages = _stages(case, mesh, model, top_y, cohesive)
     return Built(case, mesh, model, stages, top_y, bulk, cohesive)
 
 
-def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray) -> list[Stage]:
+def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, cohesive) -> list[Stage]:
     load = case.loading
     f_conf = np.zeros(model.n_dofs)
     for side in ("left", "right"):
@@ -102,5 +109,11 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray) -> list[Sta
     d_axial[np.isin(model.dirichlet, top_y)] = -load.axial_displacement
     return [
         Stage("confinement", load.confinement_steps, d_conf, f_conf),
-        Stage("axial", load.axial_steps, d_axial, f_conf),
+        Stage("axial", load.axial_steps, d_axial, f_conf, _path(load, cohesive)),
     ]
+
+
+def _path(load, cohesive) -> PathSpec | None:
+    if load.control is not Control.path:
+        return None
+    return PathSpec(cohesive.jump_measure, load.path_increment, cohesive.any_plastic, load.max_steps)

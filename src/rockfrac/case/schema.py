@@ -99,13 +99,27 @@ class CohesiveSection(TractionLaw):
         return self
 
 
+class Control(str, Enum):
+    displacement = "displacement"
+    path = "path"
+
+
 class LoadingSection(_Section):
-    """Confinement first (then held), then top shortening under displacement control."""
+    """Confinement first (then held), then top shortening.
+
+    control = "displacement": every axial step prescribes the top displacement.
+    control = "path": displacement control until the cohesive surface yields, then each step
+    prescribes an increment ``path_increment`` of the mean crack jump and solves for the top
+    displacement (indirect displacement control: traces the peak and any snap-back).
+    """
 
     confinement: float = Field(ge=0, description="lateral confining pressure [Pa]")
     confinement_steps: int = Field(1, ge=1)
     axial_displacement: float = Field(description="final top shortening [m] (negative: extension)")
     axial_steps: int = Field(ge=1)
+    control: Control = Control.displacement
+    path_increment: float | None = Field(None, gt=0, description="path control: mean-jump increment [m]")
+    max_steps: int | None = Field(None, ge=1, description="path control: most axial steps")
     stop_below_peak_fraction: float | None = Field(
         None, gt=0, lt=1, description="stop once F_axial falls below this fraction of its peak"
     )
@@ -140,6 +154,8 @@ class Case(_Section):
 
     @model_validator(mode="after")
     def _crack_needs_law(self) -> Case:
+        if self.loading.control is Control.path and not self.mesh.crack:
+            raise ValueError("loading.control = 'path' follows the crack jump, but mesh.crack = false")
         if self.mesh.crack and self.cohesive is None:
             raise ValueError("the mesh has a crack (mesh.crack = true) but there is no [cohesive] section")
         if not self.mesh.crack and self.cohesive is not None:

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 HISTORY_COLUMNS = [
-    "step", "stage", "load_factor", "u_axial", "F_axial", "newton_iterations", "cutbacks",
+    "step", "stage", "control", "load_factor", "u_axial", "F_axial", "newton_iterations", "cutbacks",
     "jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic",
 ]
 POINT_COLUMNS = [

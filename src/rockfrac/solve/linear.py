@@ -1,4 +1,8 @@
-"""Linear solver backends sharing one verb: ``solve(A, b) -> x`` for CSR matrices."""
+"""Linear solver backends sharing one verb: ``solve(A, b) -> x`` for CSR matrices.
+
+``factorize(A)`` returns an object whose ``solve(b)`` reuses the factorization (path following
+needs two right-hand sides per iteration).
+"""
 
 from __future__ import annotations
 
@@ -9,8 +13,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
+class Factorization(Protocol):
+    def solve(self, b: np.ndarray) -> np.ndarray: ...
+
+
 class LinearSolver(Protocol):
     name: str
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization: ...
 
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
 
@@ -20,8 +30,11 @@ class SuperLU:
 
     name = "superlu"
 
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        return spla.splu(a.tocsc())
+
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        return spla.spsolve(a.tocsc(), b)
+        return self.factorize(a).solve(b)
 
 
 SOLVERS = {"superlu": SuperLU}

@@ -1,13 +1,19 @@
-"""Newton-Raphson for one load step with the consistent tangent.
+"""Newton-Raphson for one load step with the consistent tangent, under load or path control.
 
-Convergence needs both the residual norm (relative to the external and reaction forces) and the
-energy norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative
-to that of the first iteration) below tolerance, and no change of state
-(constrained <-> plastic) in the last iteration. Every iteration is logged.
+Loads depend on a load factor lam: prescribed values d(lam) = d0 + lam dd on the Dirichlet dofs
+and external forces f(lam) = f0 + lam df. Under load control lam is given; under path control
+(indirect displacement control) lam is an extra unknown fixed by a scalar constraint
+g(u) = target, solved with the bordered scheme: two right-hand sides on one factorization.
+
+Convergence needs the residual norm (relative to the external and reaction forces) and the energy
+norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
+of the first iteration) below tolerance, no change of state (constrained <-> plastic) in the
+last iteration, and, under path control, the constraint met. Every iteration is logged.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -24,10 +30,36 @@ class NewtonOptions:
     force_scale: float = 1.0  # floor of the residual reference [N/m]
 
 
+@dataclass(frozen=True)
+class Loads:
+    """Load path of a stage: d(lam) = d0 + lam dd (Dirichlet values), f(lam) = f0 + lam df."""
+
+    d0: np.ndarray
+    dd: np.ndarray
+    f0: np.ndarray
+    df: np.ndarray
+
+    def dirichlet(self, lam: float) -> np.ndarray:
+        return self.d0 + lam * self.dd
+
+    def forces(self, lam: float) -> np.ndarray:
+        return self.f0 + lam * self.df
+
+
+@dataclass(frozen=True)
+class PathControl:
+    """Scalar constraint g(u) = target; ``measure(u)`` returns g and dg/du (dense, n_dofs)."""
+
+    measure: Callable[[np.ndarray], tuple[float, np.ndarray]]
+    target: float
+    tolerance: float  # absolute tolerance on g - target
+
+
 @dataclass
 class NewtonResult:
     converged: bool
     u: np.ndarray
+    lam: float
     iterations: int
     residuals: list[float] = field(default_factory=list)  # relative residual per iteration
     energies: list[float] = field(default_factory=list)  # relative energy per iteration
@@ -38,20 +70,31 @@ class NewtonResult:
 def newton_step(
     model: Model,
     u_n: np.ndarray,
-    u_target_dirichlet: np.ndarray,
-    f_ext: np.ndarray,
+    lam_n: float,
+    lam: float,
+    loads: Loads,
     solver: LinearSolver,
     options: NewtonOptions,
+    control: PathControl | None = None,
 ) -> NewtonResult:
-    """Solve R(u) = f_int(u) - f_ext = 0 with u = u_target on the Dirichlet dofs, from u_n."""
-    dofs_d = model.dirichlet
-    free = model.free
+    """Solve f_int(u) = f(lam), u_D = d(lam) from the converged (u_n, lam_n).
+
+    Load control: ``lam`` is the target. Path control: ``lam`` is the initial guess and the
+    result's lam satisfies ``control``.
+    """
+    dofs_d, free = model.dirichlet, model.free
     u = u_n.copy()
+    if control is None:
+        u_lam = lam
+    else:
+        u_lam = lam_n  # start from the converged state; lam becomes an unknown
     model.begin_step()
-    result = NewtonResult(False, u, 0)
+    result = NewtonResult(False, u, u_lam, 0)
     energy0 = None
     last_du = None
+    rel = np.inf
     for it in range(options.max_iterations + 1):
+        f_ext = loads.forces(u_lam)
         asm = model.assemble(u, u_n, f_ext)
         if not asm.ok:
             result.message = f"iteration {it}: {asm.message}"
@@ -63,26 +106,43 @@ def newton_step(
         ref = max(np.linalg.norm(f_ext[free]), np.linalg.norm(r[dofs_d]), options.force_scale)
         rel = float(np.linalg.norm(r[free]) / ref)
         result.residuals.append(rel)
+        mismatch = loads.dirichlet(u_lam) - u[dofs_d]
+        g_ok = True
+        if control is not None:
+            g, grad = control.measure(u)
+            g_ok = abs(g - control.target) <= control.tolerance
         if it > 0:
-            work = abs(float(last_du[free] @ r[free]))
-            rel_e = work / energy0 if energy0 else 0.0
+            rel_e = abs(float(last_du[free] @ r[free])) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
-            if rel <= options.tol_residual and rel_e <= options.tol_energy and asm.n_switched == 0:
+            if (rel <= options.tol_residual and rel_e <= options.tol_energy and asm.n_switched == 0
+                    and g_ok):
                 result.converged = True
                 result.iterations = it
                 result.f_int = asm.f_int
+                result.lam = u_lam
                 return result
         if it == options.max_iterations:
             break
         a = asm.matrix
-        rhs = -r
-        if it == 0:
-            # the prescribed increment enters through the tangent (consistent predictor)
-            step = np.zeros_like(u)
-            step[dofs_d] = u_target_dirichlet - u_n[dofs_d]
-            rhs = rhs - a @ step
-        rhs[dofs_d] = (u_target_dirichlet - u_n[dofs_d]) if it == 0 else 0.0
-        du = solver.solve(model.apply_dirichlet(a), rhs)
+        lift = np.zeros_like(u)
+        lift[dofs_d] = mismatch
+        rhs = -r - a @ lift  # prescribed increments enter through the tangent
+        rhs[dofs_d] = mismatch
+        if control is not None:
+            lift[dofs_d] = loads.dd
+            rhs_b = loads.df - a @ lift
+            rhs_b[dofs_d] = loads.dd
+        try:
+            lu = solver.factorize(model.apply_dirichlet(a))
+            du = lu.solve(rhs)
+            if control is not None:
+                du_b = lu.solve(rhs_b)
+                dlam = (control.target - g - grad @ du) / (grad @ du_b)
+                du = du + dlam * du_b
+                u_lam += dlam
+        except RuntimeError as err:  # exactly singular factor
+            result.message = f"iteration {it}: singular tangent ({err})"
+            return result
         if not np.all(np.isfinite(du)):
             result.message = f"iteration {it}: singular or ill-conditioned tangent"
             return result
@@ -90,6 +150,7 @@ def newton_step(
             energy0 = abs(float(du[free] @ rhs[free]))
         last_du = du
         u += du
+        u[dofs_d] = loads.dirichlet(u_lam)  # exact, no drift from summed increments
         result.iterations = it + 1
     result.message = f"no convergence in {options.max_iterations} iterations (residual {rel:.2e})"
     return result

@@ -1,9 +1,12 @@
-"""Load stepping: stages of linearly ramped loads, automatic cutback, clean stop.
+"""Load stepping: stages of linearly ramped loads, automatic cutback, path following, clean stop.
 
-A stage ramps the prescribed displacements and the external force vector from their values at
-its start to its end values with a load factor 0 -> 1. Each converged step is committed and
-handed to ``on_step``; a step that fails is retried with a smaller increment until ``min_step``,
-where the run stops cleanly, keeping every converged step.
+A stage ramps the prescribed displacements and the external forces from their values at its
+start to its end values with a load factor lam: 0 -> 1. Steps are load-controlled (lam given)
+until the stage's ``path`` (if any) becomes active; from then on each step prescribes an
+increment of a path measure (e.g. the mean crack jump) and lam is solved for, so limit points
+and snap-backs are traced. Each converged step is committed and handed to ``on_step``; a failed
+step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
+keeping every converged step.
 """
 
 from __future__ import annotations
@@ -15,7 +18,17 @@ import numpy as np
 
 from rockfrac.model import Model
 from rockfrac.solve.linear import LinearSolver
-from rockfrac.solve.newton import NewtonOptions, NewtonResult, newton_step
+from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step
+
+
+@dataclass(frozen=True)
+class PathSpec:
+    """Indirect displacement control of a stage once ``active()`` is true."""
+
+    measure: Callable[[np.ndarray], tuple[float, np.ndarray]]
+    increment: float  # nominal increment of the measure per step
+    active: Callable[[], bool]  # evaluated on the committed state
+    max_steps: int
 
 
 @dataclass(frozen=True)
@@ -26,13 +39,14 @@ class Stage:
     steps: int
     dirichlet_end: np.ndarray  # prescribed values at the end of the stage
     f_ext_end: np.ndarray  # external forces at the end of the stage
+    path: PathSpec | None = None
 
 
 @dataclass(frozen=True)
 class SteppingOptions:
     cutback: float = 0.5
-    min_step: float = 1e-4  # smallest load-factor increment, as a fraction of the stage
-    grow: float = 1.5  # increment growth after an easy step, up to the stage's nominal one
+    min_step: float = 1e-4  # smallest increment, as a fraction of the nominal one
+    grow: float = 1.5  # increment growth after an easy step, up to the nominal one
     easy_iterations: int = 6
 
 
@@ -45,6 +59,7 @@ class StepInfo:
     f_int: np.ndarray
     newton: NewtonResult
     cutbacks: int
+    controlled_by: str  # "load" or "path"
 
 
 @dataclass
@@ -57,6 +72,11 @@ class RunResult:
 
 class StopRun(Exception):
     """Raised by ``on_step`` to end the run early (e.g. past the requested softening)."""
+
+
+def _log_iterations(log, name: str, step: int, res: NewtonResult) -> None:
+    for k, (rr, ee) in enumerate(zip(res.residuals, [np.nan] + res.energies)):
+        log(f"  {name} step {step} it {k}: residual {rr:.3e} energy {ee:.3e}")
 
 
 def run_stages(
@@ -72,39 +92,49 @@ def run_stages(
     u = np.zeros(model.n_dofs)
     d_start = np.zeros(model.dirichlet.shape[0])
     f_start = np.zeros(model.n_dofs)
-    step_count = 0
+    count = 0
     for stage in stages:
-        nominal = 1.0 / stage.steps
-        dlam = nominal
-        lam = 0.0
-        cutbacks = 0
+        loads = Loads(d_start, stage.dirichlet_end - d_start, f_start, stage.f_ext_end - f_start)
+        lam, cutbacks, stage_steps = 0.0, 0, 0
+        nominal = {"load": 1.0 / stage.steps, "path": stage.path.increment if stage.path else 0.0}
+        size = dict(nominal)
         while lam < 1.0 - 1e-12:
-            dlam = min(dlam, 1.0 - lam)
-            target = lam + dlam
-            d_target = d_start + target * (stage.dirichlet_end - d_start)
-            f_target = f_start + target * (stage.f_ext_end - f_start)
-            res = newton_step(model, u, d_target, f_target, solver, newton)
-            for k, (rr, ee) in enumerate(zip(res.residuals, [np.nan] + res.energies)):
-                log(f"  {stage.name} step {step_count + 1} it {k}: residual {rr:.3e} energy {ee:.3e}")
+            use_path = stage.path is not None and stage.path.active()
+            mode = "path" if use_path else "load"
+            if use_path:
+                g_now, _ = stage.path.measure(u)
+                target = g_now + size["path"]
+                ctrl = PathControl(stage.path.measure, target, 1e-9 * nominal["path"])
+                res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
+                if res.converged and res.lam > 1.0:  # land exactly on the stage end
+                    res = newton_step(model, u, lam, 1.0, loads, solver, newton)
+            else:
+                size["load"] = min(size["load"], 1.0 - lam)
+                res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
+            _log_iterations(log, stage.name, count + 1, res)
             if not res.converged:
                 cutbacks += 1
-                log(f"  {stage.name}: step from {lam:.6f} by {dlam:.3e} failed ({res.message}); cutting back")
-                dlam *= stepping.cutback
-                if dlam < stepping.min_step * nominal * (1 - 1e-12):
-                    msg = (f"stopped in stage {stage.name!r} at load factor {lam:.6f}: increment below "
-                           f"min_step after {cutbacks} cutbacks ({res.message})")
-                    return RunResult(False, step_count, msg, u)
+                log(f"  {stage.name}: {mode}-controlled step from lam={lam:.6f} (size {size[mode]:.3e}) "
+                    f"failed: {res.message}; cutting back")
+                size[mode] *= stepping.cutback
+                if size[mode] < stepping.min_step * nominal[mode] * (1 - 1e-12):
+                    return RunResult(False, count, f"stopped in stage {stage.name!r} at load factor "
+                                     f"{lam:.6f}: {mode} increment below min_step after {cutbacks} "
+                                     f"cutbacks ({res.message})", u)
                 continue
             model.commit()
-            u = res.u
-            lam = target
-            step_count += 1
+            u, lam = res.u, res.lam
+            count += 1
+            stage_steps += 1
             try:
-                on_step(StepInfo(stage.name, step_count, lam, u, res.f_int, res, cutbacks))
+                on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, cutbacks, mode))
             except StopRun as stop:
-                return RunResult(True, step_count, str(stop), u)
+                return RunResult(True, count, str(stop), u)
             cutbacks = 0
             if res.iterations <= stepping.easy_iterations:
-                dlam = min(nominal, dlam * stepping.grow)
+                size[mode] = min(nominal[mode], size[mode] * stepping.grow)
+            if stage.path is not None and stage_steps >= stage.path.max_steps:
+                return RunResult(False, count, f"stage {stage.name!r} reached its maximum of "
+                                 f"{stage.path.max_steps} steps at load factor {lam:.6f}", u)
         d_start, f_start = stage.dirichlet_end, stage.f_ext_end
-    return RunResult(True, step_count, "all stages completed", u)
+    return RunResult(True, count, "all stages completed", u)

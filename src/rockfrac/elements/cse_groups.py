@@ -1,61 +1,18 @@
-"""Element groups: what the Newton solver sees (dofs, residual and tangent blocks, state).
+"""Cohesive-surface element groups (EP and RP) as the Newton solver sees them.
 
-A group evaluates all its elements at once (compiled kernels, no Python loop over elements),
+A group evaluates all its points at once (compiled kernels, no Python loop over points),
 keeps its committed and trial state apart and commits only on request.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from rockfrac.elements import cse
 from rockfrac.elements.interface_points import InterfacePoints
-from rockfrac.fem import quad4
-from rockfrac.fem.dofs import node_dofs
+from rockfrac.elements.solid import Evaluation
 from rockfrac.laws import cohesive as _law
 from rockfrac.laws.cohesive_params import N_STATE, S_EPSN, S_EPSS, S_MODE, CohesiveLaw
-
-
-@dataclass
-class Evaluation:
-    """Element vectors fe (n_el, nd), blocks ke (n_el, nd, nd); ok False if a local solve failed."""
-
-    fe: np.ndarray
-    ke: np.ndarray
-    ok: bool = True
-    n_switched: int = 0
-    message: str = ""
-
-
-class ElasticQ4:
-    """Linear elastic plane-strain Q4 bulk; its stiffness is constant and assembled once."""
-
-    constant = True
-    n_extra = 0
-
-    def __init__(self, nodes: np.ndarray, quads: np.ndarray, E: float, nu: float):
-        self.x = np.ascontiguousarray(nodes[quads])
-        self.quads = quads
-        self.E, self.nu = E, nu
-        self.d = quad4.plane_strain_elasticity(E, nu)
-        self.dofs = node_dofs(quads)
-        self.ke = quad4.elastic_stiffness(self.x, self.d, quad4.DN_REF)
-        if not np.all(np.isfinite(self.ke)):
-            raise ValueError("inverted or degenerate quadrilateral in the bulk mesh")
-
-    def stresses(self, u: np.ndarray) -> np.ndarray:
-        """Gauss-point stresses (n_el, 4, 4) as (xx, yy, zz, xy) [Pa], plane strain."""
-        eps = quad4.gauss_strains(self.x, u[self.dofs], quad4.DN_REF)
-        s = eps @ self.d.T
-        szz = self.nu * (s[..., 0] + s[..., 1])
-        return np.stack([s[..., 0], s[..., 1], szz, s[..., 2]], axis=-1)
-
-    # constant groups have nothing to commit
-    def begin_step(self) -> None: ...
-
-    def commit(self) -> None: ...
 
 
 class _CohesiveGroup:
@@ -81,6 +38,29 @@ class _CohesiveGroup:
     def commit(self) -> None:
         self.state[:] = self.trial
         self.tangent[:] = self.trial_tangent
+
+    def any_plastic(self) -> bool:
+        """True if a point of the committed state is plastic."""
+        return bool(np.any(self.state[:, S_MODE] == 1.0))
+
+    def jump_measure(self, u: np.ndarray) -> tuple[float, np.ndarray]:
+        """Weighted mean jump magnitude sum(w |[[u]]|)/sum(w) [m] and its gradient w.r.t. u.
+
+        The path-following measure: it grows monotonically through softening and snap-back.
+        """
+        pts = self.points
+        j = pts.jumps(u)
+        norm = np.hypot(j[:, 0], j[:, 1])
+        wsum = pts.weight.sum()
+        g = float(pts.weight @ norm / wsum)
+        safe = np.where(norm > 0.0, norm, 1.0)
+        dj = np.where(norm[:, None] > 0.0, j / safe[:, None], 0.0) * (pts.weight / wsum)[:, None]
+        grad = np.zeros(u.shape[0])
+        np.add.at(grad, 2 * pts.plus, dj[:, 0])
+        np.add.at(grad, 2 * pts.plus + 1, dj[:, 1])
+        np.add.at(grad, 2 * pts.minus, -dj[:, 0])
+        np.add.at(grad, 2 * pts.minus + 1, -dj[:, 1])
+        return g, grad
 
     def records(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """Committed per-point quantities in the local frame (for points.csv)."""

@@ -8,13 +8,13 @@ from rockfrac.fem import quad4
 from rockfrac.mesh import cracked_specimen
 from rockfrac.model import Model
 from rockfrac.solve.linear import SuperLU
-from rockfrac.solve.newton import NewtonOptions, newton_step
+from rockfrac.solve.newton import Loads, NewtonOptions, newton_step
 
 E, NU = 1.5e7, 0.3
 
 
 def distorted_patch():
-    """A 3x3-node... 2x2-element patch with an off-centre interior node (arbitrary quads)."""
+    """Four quads around an off-centre interior node (no two alike)."""
     nodes = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1.3, 0.8], [2, 1], [0, 2], [1, 2], [2, 2]], float)
     quads = np.array([[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]])
     return nodes, quads
@@ -28,8 +28,9 @@ def test_patch_test_reproduces_linear_field_exactly():
     model = Model(len(nodes), [bulk], dirichlet)
     a = np.array([[1e-3, 2e-4], [-3e-4, 5e-4]])  # u = a x + b
     exact = (nodes @ a.T + np.array([1e-4, -2e-4])).ravel()
-    res = newton_step(model, np.zeros(model.n_dofs), exact[dirichlet], np.zeros(model.n_dofs),
-                      SuperLU(), NewtonOptions())
+    zero = np.zeros(model.n_dofs)
+    loads = Loads(np.zeros(dirichlet.size), exact[dirichlet], zero, zero)
+    res = newton_step(model, zero, 0.0, 1.0, loads, SuperLU(), NewtonOptions())
     assert res.converged
     np.testing.assert_allclose(res.u, exact, rtol=0, atol=1e-15)
     sig = bulk.stresses(res.u)

@@ -88,8 +88,8 @@ class _CohesiveGroup:
 
 
 def strengths_array(eps_n: np.ndarray, eps_s: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, ...]:
-    """chi, c, tan(phi), tan(psi) at many points (vectorized over the compiled scalar law)."""
-    out = np.array([_law.strengths(a, b, p) for a, b in zip(eps_n, eps_s)]).reshape(-1, 4)
+    """chi, c, tan(phi), tan(psi) at many points."""
+    out = _law.strengths_points(np.ascontiguousarray(eps_n), np.ascontiguousarray(eps_s), p)
     return out[:, 0], out[:, 1], out[:, 2], out[:, 3]
 
 

@@ -13,6 +13,7 @@ last iteration, and, under path control, the constraint met. Every iteration is 
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -65,6 +66,8 @@ class NewtonResult:
     energies: list[float] = field(default_factory=list)  # relative energy per iteration
     message: str = ""
     f_int: np.ndarray | None = None
+    time_assembly: float = 0.0  # seconds in residual/tangent assembly (constitutive updates included)
+    time_solve: float = 0.0  # seconds in factorization and triangular solves
 
 
 def newton_step(
@@ -95,7 +98,9 @@ def newton_step(
     rel = np.inf
     for it in range(options.max_iterations + 1):
         f_ext = loads.forces(u_lam)
+        t0 = time.perf_counter()
         asm = model.assemble(u, u_n, f_ext)
+        result.time_assembly += time.perf_counter() - t0
         if not asm.ok:
             result.message = f"iteration {it}: {asm.message}"
             return result
@@ -132,6 +137,7 @@ def newton_step(
             lift[dofs_d] = loads.dd
             rhs_b = loads.df - a @ lift
             rhs_b[dofs_d] = loads.dd
+        t0 = time.perf_counter()
         try:
             lu = solver.factorize(model.apply_dirichlet(a))
             du = lu.solve(rhs)
@@ -143,6 +149,8 @@ def newton_step(
         except RuntimeError as err:  # exactly singular factor
             result.message = f"iteration {it}: singular tangent ({err})"
             return result
+        finally:
+            result.time_solve += time.perf_counter() - t0
         if not np.all(np.isfinite(du)):
             result.message = f"iteration {it}: singular or ill-conditioned tangent"
             return result

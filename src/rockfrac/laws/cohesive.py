@@ -1,0 +1,616 @@
+"""Tension-capped hyperbolic Mohr-Coulomb cohesive law (paper Sect. 4.2; Carol, Prat & Lopez 1997).
+
+Local frame ``(t, n)``: index 0 tangential, 1 normal, ``T_n > 0`` tension. Tractions in Pa, jumps
+and the plastic multiplier ``dgamma`` in m, ``eps_n``/``eps_s`` dimensionless. Parameter and state
+slots are those of :mod:`rockfrac.laws.cohesive_params`.
+
+One local problem serves both cohesive forms. With the compliance ``C = diag(1/kt, 1/kn)`` (EP,
+Sect. 6.1) or ``C = 0`` (RP, Sect. 6.2) the unknowns ``x = (T_t, T_n, eps_n, eps_s, dgamma)`` solve
+
+* ``R_u = du - C (T - T_old) - dgamma g(T, q) = 0``  (eq. 31 times K^-1; eq. 34 when C = 0)
+* ``R_n = eps_n - eps_n_old - <T_n> dgamma g_n / G_f^I = 0``
+* ``R_s = eps_s - eps_s_old - <|T_t| + T_n* tan(phi)> dgamma |g_t| / G_f^II = 0``
+* ``R_F = F(T, q) = 0``  (eq. 18)
+
+integrated by backward Euler (everything at n+1) with Carol's pairing of G_f^I with opening and
+G_f^II with slip (PAPER_NOTES, Sect. 4.2). The residual is solved by Newton with a backtracking
+line search on a scaled norm; the consistent tangent is ``dT/d(du) = -(J^-1)[0:2, 0:2]``.
+
+Corner of a degenerate hyperbola (``a_F = c - chi tan(phi) = 0``, Table 1): ``T_t / sqrt(T_t^2 +
+a^2)`` is taken as 0 when both vanish and its derivative ``a^2 / (T_t^2 + a^2)^{3/2}`` as 0 there,
+so nothing divides by zero. In the EP form ``sign(T_t) = sign(T_t^tr)`` at the solution (and in the
+RP form ``sign(T_t) = sign(du_t)``), so Newton steps are kept from crossing ``T_t = 0``, where
+``dF/dT_t`` jumps; pure opening (``T_t = 0``) keeps ``T_t`` exactly 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from rockfrac.laws.cohesive_params import (
+    MODE_ELASTIC,
+    MODE_PLASTIC,
+    N_STATE,
+    P_A_C,
+    P_A_CHI,
+    P_A_PHI,
+    P_A_PSI,
+    P_C_P,
+    P_C_R,
+    P_CHI_P,
+    P_CHI_R,
+    P_CN,
+    P_CT,
+    P_GF1,
+    P_GF2,
+    P_KINIT,
+    P_TANPHI_P,
+    P_TANPHI_R,
+    P_TANPSI_P,
+    S_DGAMMA,
+    S_EPSN,
+    S_EPSS,
+    S_MODE,
+    S_TN,
+    S_TT,
+    S_UPN,
+    S_UPT,
+)
+
+MAX_ITER = 50  # local Newton iterations per solve
+TOL_RES = 1.0e-12  # converged when the scaled residual norm is below this
+TOL_STALL = 1.0e-9  # accepted if the line search stalls (round-off) below this
+K_RP_SCALE = 1.0e10  # [Pa/m] row scale of the RP jump rows when p[P_KINIT] is not set
+
+ST_ELASTIC = 0
+ST_PLASTIC = 1
+ST_NO_CONVERGENCE = -1
+ST_UNLOAD = -2  # dgamma < 0 or inadmissible plastic direction
+ST_SINGULAR = -3  # singular Jacobian or NaN
+
+
+# --------------------------------------------------------------------------------------------
+# strengths q(eps) and small safe helpers
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _isv(eps_n, eps_s, p):
+    """chi, c [Pa], tan phi, tan psi and d chi/dw, dc/dw [Pa], d tanphi/d eps_s, d tanpsi/d eps_s.
+
+    w = eps_n + eps_s; the exponential softening laws of Sect. 4.2.
+    """
+    w = eps_n + eps_s
+    e_chi = math.exp(-p[P_A_CHI] * w)
+    e_c = math.exp(-p[P_A_C] * w)
+    e_phi = math.exp(-p[P_A_PHI] * eps_s)
+    e_psi = math.exp(-p[P_A_PSI] * eps_s)
+    d_chi = p[P_CHI_P] - p[P_CHI_R]
+    d_c = p[P_C_P] - p[P_C_R]
+    d_phi = p[P_TANPHI_P] - p[P_TANPHI_R]
+    chi = p[P_CHI_R] + d_chi * e_chi
+    c = p[P_C_R] + d_c * e_c
+    tphi = p[P_TANPHI_R] + d_phi * e_phi
+    tpsi = p[P_TANPSI_P] * e_psi
+    return (chi, c, tphi, tpsi, -p[P_A_CHI] * d_chi * e_chi, -p[P_A_C] * d_c * e_c,
+            -p[P_A_PHI] * d_phi * e_phi, -p[P_A_PSI] * tpsi)
+
+
+@nb.njit(cache=True)
+def strengths(eps_n, eps_s, p):
+    """Strengths (chi [Pa], c [Pa], tan phi, tan psi) at eps_n^p, eps_s^p (Sect. 4.2)."""
+    q = _isv(eps_n, eps_s, p)
+    return q[0], q[1], q[2], q[3]
+
+
+@nb.njit(cache=True, parallel=True)
+def strengths_points(eps_n, eps_s, p):
+    """Strengths at many points: (n, 4) array of chi [Pa], c [Pa], tan phi, tan psi."""
+    out = np.empty((eps_n.shape[0], 4))
+    for i in nb.prange(eps_n.shape[0]):
+        q = _isv(eps_n[i], eps_s[i], p)
+        for k in range(4):
+            out[i, k] = q[k]
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _ratio(a, r):
+    """a / r with 0 / 0 := 0 (the corner of a degenerate hyperbola, r = sqrt(T_t^2 + a_F^2))."""
+    if r > 1.0e-280:
+        return a / r
+    return 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def _sign(v):
+    """sign(v) with sign(0) = 0."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return 0.0
+
+
+@nb.njit(cache=True)
+def yield_function(Tt, Tn, eps_n, eps_s, p):
+    """Yield function F [Pa] of eq. (18) at traction (T_t, T_n) [Pa] and ISVs eps_n, eps_s."""
+    chi, c, tphi, _ = strengths(eps_n, eps_s, p)
+    a_f = c - chi * tphi
+    return math.sqrt(Tt * Tt + a_f * a_f) - (c - Tn * tphi)
+
+
+@nb.njit(cache=True)
+def flow_direction(Tt, Tn, eps_n, eps_s, p):
+    """Plastic flow g = dG/dT = (T_t / sqrt(T_t^2 + a_G^2), tan psi), a_G = c - chi tan psi."""
+    chi, c, _, tpsi = strengths(eps_n, eps_s, p)
+    a_g = c - chi * tpsi
+    return _ratio(Tt, math.sqrt(Tt * Tt + a_g * a_g)), tpsi
+
+
+# --------------------------------------------------------------------------------------------
+# the local problem: scaled residual and analytic Jacobian
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True, inline="always")
+def _scale(p):
+    """Traction scale s = c_p + chi_p [Pa] of the scaled residual."""
+    return max(p[P_C_P] + p[P_CHI_P], 1.0)
+
+
+@nb.njit(cache=True)
+def _jump_rows(x, du, t_old, comp, w, q, s, r, jac):
+    """Rows 0-1: jump balance R_u (eq. 31 / K, eq. 34 if C = 0) times w/s, w [Pa/m] per component."""
+    tt, dg = x[0], x[4]
+    chi, c, tphi, tpsi, dchi, dc, dtphi, dtpsi = q
+    a_g = c - chi * tpsi
+    r_g = math.sqrt(tt * tt + a_g * a_g)
+    u = _ratio(tt, r_g)  # g_t
+    v = _ratio(a_g, r_g)
+    dgt_dtt = _ratio(v * v, r_g)  # a_G^2 / r_G^3, 0 at a degenerate corner
+    dgt_dag = -_ratio(u * v, r_g)  # -T_t a_G / r_G^3
+    dag_den = dc - tpsi * dchi
+    dag_des = dag_den - chi * dtpsi
+    f0, f1 = w[0] / s, w[1] / s
+    r[0] = f0 * (du[0] - dg * u) - f0 * comp[0] * (tt - t_old[0])
+    r[1] = f1 * (du[1] - dg * tpsi) - f1 * comp[1] * (x[1] - t_old[1])
+    jac[0, 0] = -f0 * (comp[0] + dg * dgt_dtt)
+    jac[0, 1] = 0.0
+    jac[0, 2] = -f0 * dg * dgt_dag * dag_den
+    jac[0, 3] = -f0 * dg * dgt_dag * dag_des
+    jac[0, 4] = -f0 * u
+    jac[1, 0] = 0.0
+    jac[1, 1] = -f1 * comp[1]
+    jac[1, 2] = 0.0
+    jac[1, 3] = -f1 * dg * dtpsi
+    jac[1, 4] = -f1 * tpsi
+    return u, dgt_dtt, dgt_dag, dag_den, dag_des
+
+
+@nb.njit(cache=True)
+def _opening_row(x, en_old, p, q, r, jac):
+    """Row 2: backward Euler eps_n = eps_n_old + <T_n> dgamma g_n / G_f^I (Carol's pairing)."""
+    tn, dg = x[1], x[4]
+    tpsi, dtpsi = q[3], q[7]
+    gf = p[P_GF1]
+    mac = max(tn, 0.0)
+    h = 1.0 if tn > 0.0 else 0.0
+    r[2] = x[2] - en_old - mac * dg * tpsi / gf
+    jac[2, 0] = 0.0
+    jac[2, 1] = -h * dg * tpsi / gf
+    jac[2, 2] = 1.0
+    jac[2, 3] = -mac * dg * dtpsi / gf
+    jac[2, 4] = -mac * tpsi / gf
+
+
+@nb.njit(cache=True)
+def _slip_row(x, es_old, p, q, gt, r, jac):
+    """Row 3: eps_s = eps_s_old + <|T_t| + T_n* tan phi> dgamma |g_t| / G_f^II (Carol's pairing).
+
+    gt = (g_t, dg_t/dT_t, dg_t/da_G, da_G/deps_n, da_G/deps_s) from the jump rows.
+    """
+    tt, tn, dg = x[0], x[1], x[4]
+    tphi, dtphi = q[2], q[6]
+    gf = p[P_GF2]
+    sg = _sign(tt)
+    ng, dng_dtt, dng_dag = sg * gt[0], sg * gt[1], sg * gt[2]
+    tn_star = min(tn, 0.0)
+    arg = abs(tt) + tn_star * tphi
+    m = max(arg, 0.0)
+    h = 1.0 if arg > 0.0 else 0.0
+    dm_dtt = h * sg
+    dm_dtn = h * tphi if tn < 0.0 else 0.0
+    dm_des = h * tn_star * dtphi
+    r[3] = x[3] - es_old - m * dg * ng / gf
+    jac[3, 0] = -dg * (dm_dtt * ng + m * dng_dtt) / gf
+    jac[3, 1] = -dg * dm_dtn * ng / gf
+    jac[3, 2] = -dg * m * dng_dag * gt[3] / gf
+    jac[3, 3] = 1.0 - dg * (dm_des * ng + m * dng_dag * gt[4]) / gf
+    jac[3, 4] = -m * ng / gf
+
+
+@nb.njit(cache=True)
+def _yield_row(x, q, s, r, jac):
+    """Row 4: F(T, q) / s of eq. (18) and its gradient (safe at the corner T_t = a_F = 0)."""
+    tt, tn = x[0], x[1]
+    chi, c, tphi, _, dchi, dc, dtphi, _ = q
+    a_f = c - chi * tphi
+    r_f = math.sqrt(tt * tt + a_f * a_f)
+    v = _ratio(a_f, r_f)
+    daf_den = dc - tphi * dchi
+    daf_des = daf_den - chi * dtphi
+    r[4] = (r_f - c + tn * tphi) / s
+    jac[4, 0] = _ratio(tt, r_f) / s
+    jac[4, 1] = tphi / s
+    jac[4, 2] = (v * daf_den - dc) / s
+    jac[4, 3] = (v * daf_des - dc + tn * dtphi) / s
+    jac[4, 4] = 0.0
+
+
+@nb.njit(cache=True)
+def _system(x, du, t_old, en_old, es_old, comp, w, p, frozen, r, jac):
+    """Scaled residual r (5,) and Jacobian jac (5, 5) of the local problem at x (see module doc).
+
+    frozen: ISV rows replaced by eps = eps_old (return with frozen strengths, the initial guess).
+    """
+    s = _scale(p)
+    q = _isv(x[2], x[3], p)
+    gt = _jump_rows(x, du, t_old, comp, w, q, s, r, jac)
+    if frozen:
+        r[2] = x[2] - en_old
+        r[3] = x[3] - es_old
+        for k in range(5):
+            jac[2, k] = 0.0
+            jac[3, k] = 0.0
+        jac[2, 2] = 1.0
+        jac[3, 3] = 1.0
+    else:
+        _opening_row(x, en_old, p, q, r, jac)
+        _slip_row(x, es_old, p, q, gt, r, jac)
+    _yield_row(x, q, s, r, jac)
+
+
+# --------------------------------------------------------------------------------------------
+# dense solve and Newton
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _gauss(a, b):
+    """Solve a x = b in place (b (n, m) becomes x); row equilibration + partial pivoting.
+
+    Returns False if a is singular or not finite.
+    """
+    n = a.shape[0]
+    for i in range(n):
+        sc = 0.0
+        for j in range(n):
+            sc = max(sc, abs(a[i, j]))
+        if not (sc > 0.0 and sc < np.inf):
+            return False
+        a[i, :] /= sc
+        b[i, :] /= sc
+    for k in range(n):
+        piv = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[piv, k]):
+                piv = i
+        if not abs(a[piv, k]) > 1.0e-300:
+            return False
+        if piv != k:
+            for j in range(n):
+                a[k, j], a[piv, j] = a[piv, j], a[k, j]
+            for j in range(b.shape[1]):
+                b[k, j], b[piv, j] = b[piv, j], b[k, j]
+        for i in range(k + 1, n):
+            f = a[i, k] / a[k, k]
+            if f != 0.0:
+                a[i, k:] -= f * a[k, k:]
+                b[i, :] -= f * b[k, :]
+    for k in range(n - 1, -1, -1):
+        for j in range(b.shape[1]):
+            acc = b[k, j]
+            for i in range(k + 1, n):
+                acc -= a[k, i] * b[i, j]
+            b[k, j] = acc / a[k, k]
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _norm(r):
+    """Euclidean norm of the scaled (dimensionless) residual."""
+    acc = 0.0
+    for k in range(r.shape[0]):
+        acc += r[k] * r[k]
+    return math.sqrt(acc)
+
+
+@nb.njit(cache=True)
+def _corner_limit(x0, dx0, sgn):
+    """Largest step fraction (<= 1) keeping T_t on its side (sgn) of the corner T_t = 0."""
+    if sgn != 0.0 and sgn * (x0 + dx0) <= 0.0:
+        return 0.9 * abs(x0) / abs(dx0)
+    return 1.0
+
+
+@nb.njit(cache=True)
+def _newton(x, du, t_old, en_old, es_old, comp, w, p, frozen, sgn):
+    """Local Newton with backtracking on the scaled residual; x (5,) updated in place.
+
+    sgn: known sign of T_t at the solution (0: pure opening, T_t held at 0 exactly).
+    Returns 1 converged, -1 not converged in MAX_ITER, -3 singular / NaN.
+    """
+    r = np.empty(5)
+    jac = np.empty((5, 5))
+    rt = np.empty(5)
+    jt = np.empty((5, 5))
+    xt = np.empty(5)
+    dx = np.empty((5, 1))
+    _system(x, du, t_old, en_old, es_old, comp, w, p, frozen, r, jac)
+    nrm = _norm(r)
+    for _ in range(MAX_ITER):
+        if not nrm < np.inf:
+            return ST_SINGULAR
+        if nrm <= TOL_RES:
+            return 1
+        dx[:, 0] = -r
+        if not _gauss(jac, dx):
+            return ST_SINGULAR
+        if sgn == 0.0:
+            dx[0, 0] = 0.0
+        alpha = _corner_limit(x[0], dx[0, 0], sgn)
+        accepted = False
+        for _ls in range(40):
+            xt[:] = x + alpha * dx[:, 0]
+            _system(xt, du, t_old, en_old, es_old, comp, w, p, frozen, rt, jt)
+            nt = _norm(rt)
+            if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            return 1 if nrm <= TOL_STALL else ST_NO_CONVERGENCE
+        x[:] = xt
+        r[:] = rt
+        jac[:, :] = jt
+        nrm = nt
+    return 1 if nrm <= TOL_RES else ST_NO_CONVERGENCE
+
+
+@nb.njit(cache=True)
+def _tangent(x, du, t_old, en_old, es_old, comp, w, p, D):
+    """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular."""
+    r = np.empty(5)
+    jac = np.empty((5, 5))
+    _system(x, du, t_old, en_old, es_old, comp, w, p, False, r, jac)
+    s = _scale(p)
+    b = np.zeros((5, 2))
+    b[0, 0] = w[0] / s  # d r_u / d du of the scaled rows
+    b[1, 1] = w[1] / s
+    if not _gauss(jac, b):
+        return False
+    for i in range(2):
+        for j in range(2):
+            D[i, j] = -b[i, j]
+    return True
+
+
+@nb.njit(cache=True)
+def _commit(x, up_inc_t, up_inc_n, s_old, s_new):
+    """Write the plastic state x = (T_t, T_n, eps_n, eps_s, dgamma) and u^p increment to s_new."""
+    for k in range(N_STATE):
+        s_new[k] = s_old[k]
+    s_new[S_TT] = x[0]
+    s_new[S_TN] = x[1]
+    s_new[S_UPT] = s_old[S_UPT] + up_inc_t
+    s_new[S_UPN] = s_old[S_UPN] + up_inc_n
+    s_new[S_EPSN] = x[2]
+    s_new[S_EPSS] = x[3]
+    s_new[S_DGAMMA] = x[4]
+    s_new[S_MODE] = MODE_PLASTIC
+
+
+# --------------------------------------------------------------------------------------------
+# EP form (Sect. 6.1, eq. 30-31)
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _elastic_tol(p):
+    """Yield tolerance [Pa]: F <= tol is elastic."""
+    return 1.0e-10 * max(p[P_C_P], p[P_CHI_P], 1.0)
+
+
+@nb.njit(cache=True)
+def _ep_elastic(t_tr, s_old, p, s_new, D):
+    """Elastic EP step: T = T^tr, D = K^e = diag(kt, kn) [Pa/m], ISVs unchanged."""
+    for k in range(N_STATE):
+        s_new[k] = s_old[k]
+    s_new[S_TT] = t_tr[0]
+    s_new[S_TN] = t_tr[1]
+    s_new[S_DGAMMA] = 0.0
+    s_new[S_MODE] = MODE_ELASTIC
+    D[0, 0] = 1.0 / p[P_CT]
+    D[0, 1] = 0.0
+    D[1, 0] = 0.0
+    D[1, 1] = 1.0 / p[P_CN]
+    return ST_ELASTIC
+
+
+@nb.njit(cache=True)
+def ep_update(du, s_old, p, s_new, D):
+    """EP return map (eq. 30-31, backward Euler) for the local jump increment du (2,) [m].
+
+    s_old/s_new: committed/new state (N_STATE,); D (2, 2): consistent tangent dT/d[[u]] [Pa/m].
+    Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
+    """
+    comp = np.empty(2)
+    comp[0] = p[P_CT]
+    comp[1] = p[P_CN]
+    w = np.empty(2)
+    w[0] = 1.0 / comp[0]
+    w[1] = 1.0 / comp[1]
+    t_old = np.empty(2)
+    t_old[0] = s_old[S_TT]
+    t_old[1] = s_old[S_TN]
+    en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
+    t_tr = t_old + w * du  # trial traction T^tr = T_n + K^e du (eq. 31)
+    if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
+        return _ep_elastic(t_tr, s_old, p, s_new, D)
+    x = np.empty(5)
+    x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
+    sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
+    if _newton(x, du, t_old, en_old, es_old, comp, w, p, True, sgn) < 0:
+        x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
+    st = _newton(x, du, t_old, en_old, es_old, comp, w, p, False, sgn)
+    if st < 0:
+        return st
+    if x[4] < 0.0:
+        return ST_UNLOAD
+    if not _tangent(x, du, t_old, en_old, es_old, comp, w, p, D):
+        return ST_SINGULAR
+    gt, gn = flow_direction(x[0], x[1], x[2], x[3], p)
+    _commit(x, x[4] * gt, x[4] * gn, s_old, s_new)
+    return ST_PLASTIC
+
+
+@nb.njit(cache=True, parallel=True)
+def ep_update_points(du, s_old, p, s_new, D, status):
+    """EP return map at n points: du (n, 2) [m], s_old/s_new (n, N_STATE), D (n, 2, 2), status (n,)."""
+    for i in nb.prange(du.shape[0]):
+        status[i] = ep_update(du[i], s_old[i], p, s_new[i], D[i])
+
+
+# --------------------------------------------------------------------------------------------
+# RP form (Sect. 6.2, eq. 34)
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _rp_weights(p):
+    """Zero compliance and the row scale [Pa/m] of the RP jump rows (p[P_KINIT] or 1e10)."""
+    comp = np.zeros(2)
+    w = np.empty(2)
+    k = p[P_KINIT] if p[P_KINIT] > 0.0 else K_RP_SCALE
+    w[0] = k
+    w[1] = k
+    return comp, w
+
+
+@nb.njit(cache=True)
+def _rp_admissible(du, p):
+    """False if du cannot be dgamma g with dgamma > 0: g_n = tan psi >= 0 (zero iff tan psi_p = 0)."""
+    if du[0] == 0.0 and du[1] == 0.0:
+        return False
+    if du[1] < 0.0:
+        return False
+    if p[P_TANPSI_P] > 0.0:
+        return du[1] > 0.0
+    return du[1] == 0.0
+
+
+@nb.njit(cache=True)
+def _rp_direct_guess(du, s_old, p, x):
+    """Frozen-ISV closed form of eq. (34): dgamma = du_n / tan psi, g_t = du_t / dgamma, F = 0.
+
+    Returns False when |g_t| >= 1 (no frozen solution) or tan psi = 0.
+    """
+    en, es = s_old[S_EPSN], s_old[S_EPSS]
+    chi, c, tphi, tpsi = strengths(en, es, p)
+    if not (tpsi > 0.0 and tphi > 0.0):
+        return False
+    dg = du[1] / tpsi
+    gt = du[0] / dg
+    if not abs(gt) < 1.0:
+        return False
+    tt = (c - chi * tpsi) * gt / math.sqrt(1.0 - gt * gt)
+    a_f = c - chi * tphi
+    x[0], x[2], x[3], x[4] = tt, en, es, dg
+    x[1] = (c - math.sqrt(tt * tt + a_f * a_f)) / tphi
+    return True
+
+
+@nb.njit(cache=True)
+def _rp_solve(du, s_old, p, x, sgn):
+    """Newton on eq. (34) from x with T_t put on the side sgn; returns the Newton status."""
+    comp, w = _rp_weights(p)
+    t_old = np.zeros(2)
+    if sgn == 0.0:
+        x[0] = 0.0
+    elif x[0] * sgn <= 0.0:
+        x[0] = sgn * max(abs(x[0]), 1.0e-6 * _scale(p))
+    if not x[4] > 0.0:
+        x[4] = math.sqrt(du[0] * du[0] + du[1] * du[1])
+    return _newton(x, du, t_old, s_old[S_EPSN], s_old[S_EPSS], comp, w, p, False, sgn)
+
+
+@nb.njit(cache=True)
+def rp_update(du, s_old, p, x_guess, s_new, D):
+    """RP local problem (eq. 34) for the plastic jump increment du (2,) [m] since s_old.
+
+    x_guess (5,): initial (T_t, T_n, eps_n, eps_s, dgamma), not modified. Fills s_new (u^p += du)
+    and D = dT/d(du) [Pa/m]. Returns 1 on success, -2 if du is not an admissible plastic direction
+    or dgamma < 0 (the point unloads to the constrained state), -1/-3 on failure.
+    """
+    for k in range(N_STATE):
+        s_new[k] = s_old[k]
+    if not _rp_admissible(du, p):
+        return ST_UNLOAD
+    sgn = _sign(du[0])  # du_t = dgamma g_t, dgamma > 0
+    x = x_guess.copy()
+    st = _rp_solve(du, s_old, p, x, sgn)
+    if st < 0 or not x[4] > 0.0:
+        if not _rp_direct_guess(du, s_old, p, x):
+            x[:] = x_guess
+        st = _rp_solve(du, s_old, p, x, sgn)
+    if st < 0:
+        return st
+    if not x[4] > 0.0:
+        return ST_UNLOAD
+    if rp_tangent_at(x, du, s_old, p, D) < 0:
+        return ST_SINGULAR
+    _commit(x, du[0], du[1], s_old, s_new)
+    return ST_PLASTIC
+
+
+@nb.njit(cache=True)
+def rp_tangent_at(x, du, s_old, p, D):
+    """D = dT/d(du) [Pa/m] of the RP local problem (eq. 34) evaluated at x (5,); 0 ok, -3 singular."""
+    comp, w = _rp_weights(p)
+    t_old = np.zeros(2)
+    if _tangent(x, du, t_old, s_old[S_EPSN], s_old[S_EPSS], comp, w, p, D):
+        return 0
+    return ST_SINGULAR
+
+
+@nb.njit(cache=True)
+def rp_predictor(T_lam, s_old, p, x_out):
+    """First plastic iteration of RP (Sect. 6.2): T = T_lam - dgamma K^e g(T), F(T, q_old) = 0.
+
+    K^e = diag(k_init, k_init) [Pa/m]; the ISVs are frozen at their committed values (the first
+    iteration only needs a starting point). x_out = (T_t, T_n, eps_n_old, eps_s_old, dgamma [m]).
+    Returns 0 on success, -2 if dgamma <= 0 (T_lam not outside F), -1/-3 on failure.
+    """
+    k = p[P_KINIT]
+    comp = np.empty(2)
+    comp[0] = 1.0 / k
+    comp[1] = 1.0 / k
+    w = np.empty(2)
+    w[0] = k
+    w[1] = k
+    t_lam = np.empty(2)
+    t_lam[0] = T_lam[0]
+    t_lam[1] = T_lam[1]
+    du = np.zeros(2)  # with T_old := T_lam, R_u = -C (T - T_lam) - dgamma g
+    en, es = s_old[S_EPSN], s_old[S_EPSS]
+    x_out[0], x_out[1], x_out[2], x_out[3], x_out[4] = t_lam[0], t_lam[1], en, es, 0.0
+    st = _newton(x_out, du, t_lam, en, es, comp, w, p, True, _sign(t_lam[0]))
+    if st < 0:
+        return st
+    if not x_out[4] > 0.0:
+        return ST_UNLOAD
+    return 0

@@ -63,7 +63,7 @@ from rockfrac.laws.cohesive_params import (
 MAX_ITER = 50  # local Newton iterations per solve
 TOL_RES = 1.0e-12  # converged when the scaled residual norm is below this
 TOL_STALL = 1.0e-9  # accepted if the line search stalls (round-off) below this
-K_RP_SCALE = 1.0e10  # [Pa/m] row scale of the RP jump rows when p[P_KINIT] is not set
+K_RP_SCALE = 1.0e10  # [Pa/m] sets the jump-row scale s / K_RP_SCALE when C = 0 and du = 0
 
 ST_ELASTIC = 0
 ST_PLASTIC = 1
@@ -163,8 +163,8 @@ def _scale(p):
 
 
 @nb.njit(cache=True)
-def _jump_rows(x, du, t_old, comp, w, q, s, r, jac):
-    """Rows 0-1: jump balance R_u (eq. 31 / K, eq. 34 if C = 0) times w/s, w [Pa/m] per component."""
+def _jump_rows(x, du, t_old, comp, wu, q, r, jac):
+    """Rows 0-1: jump balance R_u [m] (eq. 31 / K; eq. 34 if C = 0) times wu [1/m]."""
     tt, dg = x[0], x[4]
     chi, c, tphi, tpsi, dchi, dc, dtphi, dtpsi = q
     a_g = c - chi * tpsi
@@ -175,42 +175,45 @@ def _jump_rows(x, du, t_old, comp, w, q, s, r, jac):
     dgt_dag = -_ratio(u * v, r_g)  # -T_t a_G / r_G^3
     dag_den = dc - tpsi * dchi
     dag_des = dag_den - chi * dtpsi
-    f0, f1 = w[0] / s, w[1] / s
-    r[0] = f0 * (du[0] - dg * u) - f0 * comp[0] * (tt - t_old[0])
-    r[1] = f1 * (du[1] - dg * tpsi) - f1 * comp[1] * (x[1] - t_old[1])
-    jac[0, 0] = -f0 * (comp[0] + dg * dgt_dtt)
+    r[0] = wu * (du[0] - dg * u - comp[0] * (tt - t_old[0]))
+    r[1] = wu * (du[1] - dg * tpsi - comp[1] * (x[1] - t_old[1]))
+    jac[0, 0] = -wu * (comp[0] + dg * dgt_dtt)
     jac[0, 1] = 0.0
-    jac[0, 2] = -f0 * dg * dgt_dag * dag_den
-    jac[0, 3] = -f0 * dg * dgt_dag * dag_des
-    jac[0, 4] = -f0 * u
+    jac[0, 2] = -wu * dg * dgt_dag * dag_den
+    jac[0, 3] = -wu * dg * dgt_dag * dag_des
+    jac[0, 4] = -wu * u
     jac[1, 0] = 0.0
-    jac[1, 1] = -f1 * comp[1]
+    jac[1, 1] = -wu * comp[1]
     jac[1, 2] = 0.0
-    jac[1, 3] = -f1 * dg * dtpsi
-    jac[1, 4] = -f1 * tpsi
+    jac[1, 3] = -wu * dg * dtpsi
+    jac[1, 4] = -wu * tpsi
     return u, dgt_dtt, dgt_dag, dag_den, dag_des
 
 
 @nb.njit(cache=True)
-def _opening_row(x, en_old, p, q, r, jac):
-    """Row 2: backward Euler eps_n = eps_n_old + <T_n> dgamma g_n / G_f^I (Carol's pairing)."""
+def _opening_row(x, en_old, p, q, we, r, jac):
+    """Row 2: G_f^I (eps_n - eps_n_old) - <T_n> dgamma g_n [Pa m] times we [1/(Pa m)].
+
+    Backward Euler of eps_n' = <T_n> u_n^p' / G_f^I (Carol's pairing, PAPER_NOTES Sect. 4.2).
+    """
     tn, dg = x[1], x[4]
     tpsi, dtpsi = q[3], q[7]
     gf = p[P_GF1]
     mac = max(tn, 0.0)
     h = 1.0 if tn > 0.0 else 0.0
-    r[2] = x[2] - en_old - mac * dg * tpsi / gf
+    r[2] = we * (gf * (x[2] - en_old) - mac * dg * tpsi)
     jac[2, 0] = 0.0
-    jac[2, 1] = -h * dg * tpsi / gf
-    jac[2, 2] = 1.0
-    jac[2, 3] = -mac * dg * dtpsi / gf
-    jac[2, 4] = -mac * tpsi / gf
+    jac[2, 1] = -we * h * dg * tpsi
+    jac[2, 2] = we * gf
+    jac[2, 3] = -we * mac * dg * dtpsi
+    jac[2, 4] = -we * mac * tpsi
 
 
 @nb.njit(cache=True)
-def _slip_row(x, es_old, p, q, gt, r, jac):
-    """Row 3: eps_s = eps_s_old + <|T_t| + T_n* tan phi> dgamma |g_t| / G_f^II (Carol's pairing).
+def _slip_row(x, es_old, p, q, gt, we, r, jac):
+    """Row 3: G_f^II (eps_s - eps_s_old) - <|T_t| + T_n* tan phi> dgamma |g_t| [Pa m] times we.
 
+    Backward Euler of eps_s' = <|T_t| + T_n* tan phi> |u_t^p'| / G_f^II (Carol's pairing).
     gt = (g_t, dg_t/dT_t, dg_t/da_G, da_G/deps_n, da_G/deps_s) from the jump rows.
     """
     tt, tn, dg = x[0], x[1], x[4]
@@ -225,12 +228,12 @@ def _slip_row(x, es_old, p, q, gt, r, jac):
     dm_dtt = h * sg
     dm_dtn = h * tphi if tn < 0.0 else 0.0
     dm_des = h * tn_star * dtphi
-    r[3] = x[3] - es_old - m * dg * ng / gf
-    jac[3, 0] = -dg * (dm_dtt * ng + m * dng_dtt) / gf
-    jac[3, 1] = -dg * dm_dtn * ng / gf
-    jac[3, 2] = -dg * m * dng_dag * gt[3] / gf
-    jac[3, 3] = 1.0 - dg * (dm_des * ng + m * dng_dag * gt[4]) / gf
-    jac[3, 4] = -m * ng / gf
+    r[3] = we * (gf * (x[3] - es_old) - m * dg * ng)
+    jac[3, 0] = -we * dg * (dm_dtt * ng + m * dng_dtt)
+    jac[3, 1] = -we * dg * dm_dtn * ng
+    jac[3, 2] = -we * dg * m * dng_dag * gt[3]
+    jac[3, 3] = we * (gf - dg * (dm_des * ng + m * dng_dag * gt[4]))
+    jac[3, 4] = -we * m * ng
 
 
 @nb.njit(cache=True)
@@ -252,14 +255,16 @@ def _yield_row(x, q, s, r, jac):
 
 
 @nb.njit(cache=True)
-def _system(x, du, t_old, en_old, es_old, comp, w, p, frozen, r, jac):
+def _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac):
     """Scaled residual r (5,) and Jacobian jac (5, 5) of the local problem at x (see module doc).
 
-    frozen: ISV rows replaced by eps = eps_old (return with frozen strengths, the initial guess).
+    Row weights make every row a relative error: jump rows by wu = 1/L_u [1/m], ISV rows (in
+    energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. frozen: ISV rows become
+    eps = eps_old (return with frozen strengths, used as initial guess).
     """
     s = _scale(p)
     q = _isv(x[2], x[3], p)
-    gt = _jump_rows(x, du, t_old, comp, w, q, s, r, jac)
+    gt = _jump_rows(x, du, t_old, comp, wu, q, r, jac)
     if frozen:
         r[2] = x[2] - en_old
         r[3] = x[3] - es_old
@@ -269,9 +274,18 @@ def _system(x, du, t_old, en_old, es_old, comp, w, p, frozen, r, jac):
         jac[2, 2] = 1.0
         jac[3, 3] = 1.0
     else:
-        _opening_row(x, en_old, p, q, r, jac)
-        _slip_row(x, es_old, p, q, gt, r, jac)
+        _opening_row(x, en_old, p, q, wu / s, r, jac)
+        _slip_row(x, es_old, p, q, gt, wu / s, r, jac)
     _yield_row(x, q, s, r, jac)
+
+
+@nb.njit(cache=True)
+def _jump_weight(comp, du, p):
+    """Weight 1/L_u [1/m] of the jump rows, L_u = max(C) s + |du| (elastic plus applied jump)."""
+    lu = max(comp[0], comp[1]) * _scale(p) + math.sqrt(du[0] * du[0] + du[1] * du[1])
+    if not lu > 0.0:
+        lu = _scale(p) / K_RP_SCALE
+    return 1.0 / lu
 
 
 # --------------------------------------------------------------------------------------------
@@ -338,7 +352,7 @@ def _corner_limit(x0, dx0, sgn):
 
 
 @nb.njit(cache=True)
-def _newton(x, du, t_old, en_old, es_old, comp, w, p, frozen, sgn):
+def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
     """Local Newton with backtracking on the scaled residual; x (5,) updated in place.
 
     sgn: known sign of T_t at the solution (0: pure opening, T_t held at 0 exactly).
@@ -350,7 +364,8 @@ def _newton(x, du, t_old, en_old, es_old, comp, w, p, frozen, sgn):
     jt = np.empty((5, 5))
     xt = np.empty(5)
     dx = np.empty((5, 1))
-    _system(x, du, t_old, en_old, es_old, comp, w, p, frozen, r, jac)
+    wu = _jump_weight(comp, du, p)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac)
     nrm = _norm(r)
     for _ in range(MAX_ITER):
         if not nrm < np.inf:
@@ -366,7 +381,7 @@ def _newton(x, du, t_old, en_old, es_old, comp, w, p, frozen, sgn):
         accepted = False
         for _ls in range(40):
             xt[:] = x + alpha * dx[:, 0]
-            _system(xt, du, t_old, en_old, es_old, comp, w, p, frozen, rt, jt)
+            _system(xt, du, t_old, en_old, es_old, comp, wu, p, frozen, rt, jt)
             nt = _norm(rt)
             if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
                 accepted = True
@@ -382,15 +397,15 @@ def _newton(x, du, t_old, en_old, es_old, comp, w, p, frozen, sgn):
 
 
 @nb.njit(cache=True)
-def _tangent(x, du, t_old, en_old, es_old, comp, w, p, D):
+def _tangent(x, du, t_old, en_old, es_old, comp, p, D):
     """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular."""
     r = np.empty(5)
     jac = np.empty((5, 5))
-    _system(x, du, t_old, en_old, es_old, comp, w, p, False, r, jac)
-    s = _scale(p)
+    wu = _jump_weight(comp, du, p)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, False, r, jac)
     b = np.zeros((5, 2))
-    b[0, 0] = w[0] / s  # d r_u / d du of the scaled rows
-    b[1, 1] = w[1] / s
+    b[0, 0] = wu  # d r / d du of the weighted jump rows
+    b[1, 1] = wu
     if not _gauss(jac, b):
         return False
     for i in range(2):
@@ -451,27 +466,24 @@ def ep_update(du, s_old, p, s_new, D):
     comp = np.empty(2)
     comp[0] = p[P_CT]
     comp[1] = p[P_CN]
-    w = np.empty(2)
-    w[0] = 1.0 / comp[0]
-    w[1] = 1.0 / comp[1]
     t_old = np.empty(2)
     t_old[0] = s_old[S_TT]
     t_old[1] = s_old[S_TN]
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
-    t_tr = t_old + w * du  # trial traction T^tr = T_n + K^e du (eq. 31)
+    t_tr = t_old + du / comp  # trial traction T^tr = T_n + K^e du (eq. 31)
     if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
         return _ep_elastic(t_tr, s_old, p, s_new, D)
     x = np.empty(5)
     x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
     sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
-    if _newton(x, du, t_old, en_old, es_old, comp, w, p, True, sgn) < 0:
+    if _newton(x, du, t_old, en_old, es_old, comp, p, True, sgn) < 0:
         x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
-    st = _newton(x, du, t_old, en_old, es_old, comp, w, p, False, sgn)
+    st = _newton(x, du, t_old, en_old, es_old, comp, p, False, sgn)
     if st < 0:
         return st
     if x[4] < 0.0:
         return ST_UNLOAD
-    if not _tangent(x, du, t_old, en_old, es_old, comp, w, p, D):
+    if not _tangent(x, du, t_old, en_old, es_old, comp, p, D):
         return ST_SINGULAR
     gt, gn = flow_direction(x[0], x[1], x[2], x[3], p)
     _commit(x, x[4] * gt, x[4] * gn, s_old, s_new)
@@ -488,17 +500,6 @@ def ep_update_points(du, s_old, p, s_new, D, status):
 # --------------------------------------------------------------------------------------------
 # RP form (Sect. 6.2, eq. 34)
 # --------------------------------------------------------------------------------------------
-
-
-@nb.njit(cache=True)
-def _rp_weights(p):
-    """Zero compliance and the row scale [Pa/m] of the RP jump rows (p[P_KINIT] or 1e10)."""
-    comp = np.zeros(2)
-    w = np.empty(2)
-    k = p[P_KINIT] if p[P_KINIT] > 0.0 else K_RP_SCALE
-    w[0] = k
-    w[1] = k
-    return comp, w
 
 
 @nb.njit(cache=True)
@@ -537,15 +538,14 @@ def _rp_direct_guess(du, s_old, p, x):
 @nb.njit(cache=True)
 def _rp_solve(du, s_old, p, x, sgn):
     """Newton on eq. (34) from x with T_t put on the side sgn; returns the Newton status."""
-    comp, w = _rp_weights(p)
-    t_old = np.zeros(2)
+    zero = np.zeros(2)
     if sgn == 0.0:
         x[0] = 0.0
     elif x[0] * sgn <= 0.0:
         x[0] = sgn * max(abs(x[0]), 1.0e-6 * _scale(p))
     if not x[4] > 0.0:
         x[4] = math.sqrt(du[0] * du[0] + du[1] * du[1])
-    return _newton(x, du, t_old, s_old[S_EPSN], s_old[S_EPSS], comp, w, p, False, sgn)
+    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, False, sgn)
 
 
 @nb.njit(cache=True)
@@ -560,7 +560,7 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
         s_new[k] = s_old[k]
     if not _rp_admissible(du, p):
         return ST_UNLOAD
-    sgn = _sign(du[0])  # du_t = dgamma g_t, dgamma > 0
+    sgn = _sign(du[0])  # du_t = dgamma g_t with dgamma > 0
     x = x_guess.copy()
     st = _rp_solve(du, s_old, p, x, sgn)
     if st < 0 or not x[4] > 0.0:
@@ -580,9 +580,8 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
 @nb.njit(cache=True)
 def rp_tangent_at(x, du, s_old, p, D):
     """D = dT/d(du) [Pa/m] of the RP local problem (eq. 34) evaluated at x (5,); 0 ok, -3 singular."""
-    comp, w = _rp_weights(p)
-    t_old = np.zeros(2)
-    if _tangent(x, du, t_old, s_old[S_EPSN], s_old[S_EPSS], comp, w, p, D):
+    zero = np.zeros(2)
+    if _tangent(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, D):
         return 0
     return ST_SINGULAR
 
@@ -595,20 +594,16 @@ def rp_predictor(T_lam, s_old, p, x_out):
     iteration only needs a starting point). x_out = (T_t, T_n, eps_n_old, eps_s_old, dgamma [m]).
     Returns 0 on success, -2 if dgamma <= 0 (T_lam not outside F), -1/-3 on failure.
     """
-    k = p[P_KINIT]
     comp = np.empty(2)
-    comp[0] = 1.0 / k
-    comp[1] = 1.0 / k
-    w = np.empty(2)
-    w[0] = k
-    w[1] = k
+    comp[0] = 1.0 / p[P_KINIT]
+    comp[1] = comp[0]
     t_lam = np.empty(2)
     t_lam[0] = T_lam[0]
     t_lam[1] = T_lam[1]
-    du = np.zeros(2)  # with T_old := T_lam, R_u = -C (T - T_lam) - dgamma g
+    du = np.zeros(2)  # with T_old := T_lam the jump rows read -C (T - T_lam) - dgamma g = 0
     en, es = s_old[S_EPSN], s_old[S_EPSS]
     x_out[0], x_out[1], x_out[2], x_out[3], x_out[4] = t_lam[0], t_lam[1], en, es, 0.0
-    st = _newton(x_out, du, t_lam, en, es, comp, w, p, True, _sign(t_lam[0]))
+    st = _newton(x_out, du, t_lam, en, es, comp, p, True, _sign(t_lam[0]))
     if st < 0:
         return st
     if not x_out[4] > 0.0:

@@ -7,7 +7,7 @@ g(u) = target, solved with the bordered scheme: two right-hand sides on one fact
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
-of the first iteration) below tolerance, no change of state (constrained <-> plastic) in the
+of the largest so far) below tolerance, no change of state (constrained <-> plastic) in the
 last iteration, and, under path control, the constraint met. Every iteration is logged.
 """
 
@@ -154,8 +154,7 @@ def newton_step(
         if not np.all(np.isfinite(du)):
             result.message = f"iteration {it}: singular or ill-conditioned tangent"
             return result
-        if energy0 is None or energy0 == 0.0:
-            energy0 = abs(float(du[free] @ rhs[free]))
+        energy0 = max(energy0 or 0.0, abs(float(du[free] @ rhs[free])))  # largest so far
         last_du = du
         u += du
         u[dofs_d] = loads.dirichlet(u_lam)  # exact, no drift from summed increments

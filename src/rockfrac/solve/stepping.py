@@ -2,7 +2,8 @@
 
 A stage ramps the prescribed displacements and the external forces from their values at its
 start to its end values with a load factor lam: 0 -> 1. Steps are load-controlled (lam given)
-until the stage's ``path`` (if any) becomes active; from then on each step prescribes an
+until the stage's ``path`` (if any) becomes active, or a load-controlled step fails where the
+path measure is already positive (a limit point); from then on each step prescribes an
 increment of a path measure (e.g. the mean crack jump) and lam is solved for, so limit points
 and snap-backs are traced. Each converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
@@ -98,8 +99,9 @@ def run_stages(
         lam, cutbacks, stage_steps = 0.0, 0, 0
         nominal = {"load": 1.0 / stage.steps, "path": stage.path.increment if stage.path else 0.0}
         size = dict(nominal)
+        forced = False  # path control taken over after a failed load-controlled step
         while lam < 1.0 - 1e-12:
-            use_path = stage.path is not None and stage.path.active()
+            use_path = stage.path is not None and (forced or stage.path.active())
             mode = "path" if use_path else "load"
             if use_path:
                 g_now, _ = stage.path.measure(u)
@@ -112,6 +114,12 @@ def run_stages(
                 size["load"] = min(size["load"], 1.0 - lam)
                 res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
+            if (not res.converged and mode == "load" and stage.path is not None
+                    and stage.path.measure(u)[0] > 1e-6 * stage.path.increment):
+                forced = True  # a limit point under load control: follow the path from here
+                log(f"  {stage.name}: load-controlled step from lam={lam:.6f} failed ({res.message}); "
+                    "switching to path control")
+                continue
             if not res.converged:
                 cutbacks += 1
                 log(f"  {stage.name}: {mode}-controlled step from lam={lam:.6f} (size {size[mode]:.3e}) "

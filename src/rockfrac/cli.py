@@ -11,7 +11,7 @@ from rich.console import Console
 
 from rockfrac.case.schema import CaseError
 
-console = Console(stderr=True)
+console = Console(stderr=True, soft_wrap=True)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -60,7 +60,10 @@ def _cmd_drive(args: argparse.Namespace) -> int:
 
     law_file = load_law(args.law)
     jumps = _read_path(Path(args.path))
-    rows = drive_path(law_of_section(law_file.law), jumps)
+    try:
+        rows = drive_path(law_of_section(law_file.law), jumps)
+    except RuntimeError as err:
+        raise CaseError(f"{args.path}: {err}") from None
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cols = ["step", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p",
@@ -93,7 +96,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except CaseError as err:
-        console.print(f"[red]error:[/] {err}", highlight=False)
+        console.print("[red]error:[/]", end=" ")
+        console.print(str(err), markup=False, highlight=False)
         return 2
 
 

@@ -117,7 +117,7 @@ def strengths_points(eps_n, eps_s, p):
     return out
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _ratio(a, r):
     """a / r with 0 / 0 := 0 (the corner of a degenerate hyperbola, r = sqrt(T_t^2 + a_F^2))."""
     if r > 1.0e-280:
@@ -125,7 +125,7 @@ def _ratio(a, r):
     return 0.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _sign(v):
     """sign(v) with sign(0) = 0."""
     if v > 0.0:
@@ -156,7 +156,7 @@ def flow_direction(Tt, Tn, eps_n, eps_s, p):
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _scale(p):
     """Traction scale s = c_p + chi_p [Pa] of the scaled residual."""
     return max(p[P_C_P] + p[P_CHI_P], 1.0)
@@ -334,7 +334,7 @@ def _gauss(a, b):
     return True
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _norm(r):
     """Euclidean norm of the scaled (dimensionless) residual."""
     acc = 0.0

@@ -1,4 +1,4 @@
-"""Command line: ``rockfrac run | drive``."""
+"""Command line: ``rockfrac run | drive | paper``."""
 
 from __future__ import annotations
 
@@ -75,6 +75,29 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_paper(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from rockfrac.studies.paper import run_paper
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
+                  TimeElapsedColumn(), console=console, disable=args.quiet) as bar:
+        tasks: dict[str, int] = {}
+
+        def progress(name: str, row: dict) -> None:
+            if name not in tasks:
+                tasks[name] = bar.add_task(name, total=None, info="")
+            bar.update(tasks[name], advance=1, info=f"step {row['step']} it {row['newton_iterations']} "
+                       f"u={1e3 * row['u_axial']:.3f} mm F={row['F_axial']:.0f} N/m")
+
+        results = run_paper(args.out, args.steps, progress)
+    for r in results:
+        console.print(f"{r.name}: {'completed' if r.completed else r.message}, {r.iterations} iterations, "
+                      f"{r.wall:.2f} s", highlight=False)
+    console.print(f"report: {args.out / 'report.md'}")
+    return 0 if all(r.completed for r in results) else 1
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rockfrac", description="Quasi-static FE fracture of rock.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -88,6 +111,11 @@ def parser() -> argparse.ArgumentParser:
     d.add_argument("--path", type=Path, required=True, help="CSV with columns jump_t, jump_n [m]")
     d.add_argument("--out", type=Path, required=True)
     d.set_defaults(func=_cmd_drive)
+    pp = sub.add_parser("paper", help="reproduce the paper's numerical study (figures, CSVs, report)")
+    pp.add_argument("--out", type=Path, required=True)
+    pp.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
+    pp.add_argument("--quiet", action="store_true")
+    pp.set_defaults(func=_cmd_paper)
     return p
 
 

@@ -260,12 +260,12 @@ def _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac):
 
     Row weights make every row a relative error: jump rows by wu = 1/L_u [1/m], ISV rows (in
     energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. frozen: ISV rows become
-    eps = eps_old (return with frozen strengths, used as initial guess).
+    eps = eps_old when frozen > 0 (a float flag: return with frozen strengths, the guess).
     """
     s = _scale(p)
     q = _isv(x[2], x[3], p)
     gt = _jump_rows(x, du, t_old, comp, wu, q, r, jac)
-    if frozen:
+    if frozen > 0.0:
         r[2] = x[2] - en_old
         r[3] = x[3] - es_old
         for k in range(5):
@@ -297,17 +297,20 @@ def _jump_weight(comp, du, p):
 def _gauss(a, b):
     """Solve a x = b in place (b (n, m) becomes x); row equilibration + partial pivoting.
 
-    Returns False if a is singular or not finite.
+    Returns False if a is singular or not finite. Plain loops (array expressions compile slowly).
     """
     n = a.shape[0]
+    m = b.shape[1]
     for i in range(n):
         sc = 0.0
         for j in range(n):
             sc = max(sc, abs(a[i, j]))
         if not (sc > 0.0 and sc < np.inf):
             return False
-        a[i, :] /= sc
-        b[i, :] /= sc
+        for j in range(n):
+            a[i, j] /= sc
+        for j in range(m):
+            b[i, j] /= sc
     for k in range(n):
         piv = k
         for i in range(k + 1, n):
@@ -315,18 +318,18 @@ def _gauss(a, b):
                 piv = i
         if not abs(a[piv, k]) > 1.0e-300:
             return False
-        if piv != k:
-            for j in range(n):
-                a[k, j], a[piv, j] = a[piv, j], a[k, j]
-            for j in range(b.shape[1]):
-                b[k, j], b[piv, j] = b[piv, j], b[k, j]
+        for j in range(n):
+            a[k, j], a[piv, j] = a[piv, j], a[k, j]
+        for j in range(m):
+            b[k, j], b[piv, j] = b[piv, j], b[k, j]
         for i in range(k + 1, n):
             f = a[i, k] / a[k, k]
-            if f != 0.0:
-                a[i, k:] -= f * a[k, k:]
-                b[i, :] -= f * b[k, :]
+            for j in range(k, n):
+                a[i, j] -= f * a[k, j]
+            for j in range(m):
+                b[i, j] -= f * b[k, j]
     for k in range(n - 1, -1, -1):
-        for j in range(b.shape[1]):
+        for j in range(m):
             acc = b[k, j]
             for i in range(k + 1, n):
                 acc -= a[k, i] * b[i, j]
@@ -372,7 +375,8 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
             return ST_SINGULAR
         if nrm <= TOL_RES:
             return 1
-        dx[:, 0] = -r
+        for k in range(5):
+            dx[k, 0] = -r[k]
         if not _gauss(jac, dx):
             return ST_SINGULAR
         if sgn == 0.0:
@@ -380,7 +384,8 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
         alpha = _corner_limit(x[0], dx[0, 0], sgn)
         accepted = False
         for _ls in range(40):
-            xt[:] = x + alpha * dx[:, 0]
+            for k in range(5):
+                xt[k] = x[k] + alpha * dx[k, 0]
             _system(xt, du, t_old, en_old, es_old, comp, wu, p, frozen, rt, jt)
             nt = _norm(rt)
             if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
@@ -389,9 +394,11 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
             alpha *= 0.5
         if not accepted:
             return 1 if nrm <= TOL_STALL else ST_NO_CONVERGENCE
-        x[:] = xt
-        r[:] = rt
-        jac[:, :] = jt
+        for k in range(5):
+            x[k] = xt[k]
+            r[k] = rt[k]
+            for j in range(5):
+                jac[k, j] = jt[k, j]
         nrm = nt
     return 1 if nrm <= TOL_RES else ST_NO_CONVERGENCE
 
@@ -402,7 +409,7 @@ def _tangent(x, du, t_old, en_old, es_old, comp, p, D):
     r = np.empty(5)
     jac = np.empty((5, 5))
     wu = _jump_weight(comp, du, p)
-    _system(x, du, t_old, en_old, es_old, comp, wu, p, False, r, jac)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, 0.0, r, jac)
     b = np.zeros((5, 2))
     b[0, 0] = wu  # d r / d du of the weighted jump rows
     b[1, 1] = wu
@@ -470,15 +477,17 @@ def ep_update(du, s_old, p, s_new, D):
     t_old[0] = s_old[S_TT]
     t_old[1] = s_old[S_TN]
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
-    t_tr = t_old + du / comp  # trial traction T^tr = T_n + K^e du (eq. 31)
+    t_tr = np.empty(2)  # trial traction T^tr = T_n + K^e du (eq. 31)
+    t_tr[0] = t_old[0] + du[0] / comp[0]
+    t_tr[1] = t_old[1] + du[1] / comp[1]
     if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
         return _ep_elastic(t_tr, s_old, p, s_new, D)
     x = np.empty(5)
     x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
     sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
-    if _newton(x, du, t_old, en_old, es_old, comp, p, True, sgn) < 0:
+    if _newton(x, du, t_old, en_old, es_old, comp, p, 1.0, sgn) < 0:
         x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
-    st = _newton(x, du, t_old, en_old, es_old, comp, p, False, sgn)
+    st = _newton(x, du, t_old, en_old, es_old, comp, p, 0.0, sgn)
     if st < 0:
         return st
     if x[4] < 0.0:
@@ -545,7 +554,7 @@ def _rp_solve(du, s_old, p, x, sgn):
         x[0] = sgn * max(abs(x[0]), 1.0e-6 * _scale(p))
     if not x[4] > 0.0:
         x[4] = math.sqrt(du[0] * du[0] + du[1] * du[1])
-    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, False, sgn)
+    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, 0.0, sgn)
 
 
 @nb.njit(cache=True)
@@ -561,11 +570,14 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
     if not _rp_admissible(du, p):
         return ST_UNLOAD
     sgn = _sign(du[0])  # du_t = dgamma g_t with dgamma > 0
-    x = x_guess.copy()
+    x = np.empty(5)
+    for k in range(5):
+        x[k] = x_guess[k]
     st = _rp_solve(du, s_old, p, x, sgn)
     if st < 0 or not x[4] > 0.0:
         if not _rp_direct_guess(du, s_old, p, x):
-            x[:] = x_guess
+            for k in range(5):
+                x[k] = x_guess[k]
         st = _rp_solve(du, s_old, p, x, sgn)
     if st < 0:
         return st
@@ -603,7 +615,7 @@ def rp_predictor(T_lam, s_old, p, x_out):
     du = np.zeros(2)  # with T_old := T_lam the jump rows read -C (T - T_lam) - dgamma g = 0
     en, es = s_old[S_EPSN], s_old[S_EPSS]
     x_out[0], x_out[1], x_out[2], x_out[3], x_out[4] = t_lam[0], t_lam[1], en, es, 0.0
-    st = _newton(x_out, du, t_lam, en, es, comp, p, True, _sign(t_lam[0]))
+    st = _newton(x_out, du, t_lam, en, es, comp, p, 1.0, _sign(t_lam[0]))
     if st < 0:
         return st
     if not x_out[4] > 0.0:

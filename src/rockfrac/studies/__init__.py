@@ -1,0 +1,1 @@
+"""Studies: the paper's numerical study (and, later, the penalty study)."""

@@ -49,7 +49,7 @@ def machine() -> dict:
     }
 
 
-def case_for(n: int) -> dict:
+def case_for(n: int, solver: str) -> dict:
     """Paper specimen, N across, N/2 layers per block, EP CSE with Table 1's law."""
     return {
         "title": f"benchmark N={n}",
@@ -64,15 +64,16 @@ def case_for(n: int) -> dict:
         "loading": {"confinement": 2e4, "confinement_steps": 1, "axial_displacement": 1e-3,
                     "axial_steps": 3, "control": "path", "path_increment": 5e-5, "max_steps": 6},
         "output": {"points": False},
+        "solver": {"linear": solver},
     }
 
 
-def run_size(n: int, out: Path) -> dict:
+def run_size(n: int, out: Path, solver: str) -> dict:
     from rockfrac.case.build import build
     from rockfrac.case.schema import parse_case
     from rockfrac.run import run_case
 
-    case = parse_case(case_for(n), f"benchmark N={n}")
+    case = parse_case(case_for(n, solver), f"benchmark N={n}")
     t0 = time.perf_counter()
     built = build(case)
     t_setup = time.perf_counter() - t0
@@ -98,7 +99,7 @@ def run_size(n: int, out: Path) -> dict:
     h = read_csv(out / f"N{n}" / "history.csv")
     iters = sum(stats["iterations"])
     return {
-        "N": n, "dofs": int(built.model.n_dofs), "elements": int(built.mesh.quads.shape[0]),
+        "N": n, "solver": solver, "dofs": int(built.model.n_dofs), "elements": int(built.mesh.quads.shape[0]),
         "nnz": int(built.model.pattern.nnz), "setup_s": t_setup, "steps": summary.result.steps,
         "newton_iterations": iters,
         "assembly_per_iteration_s": sum(stats["assembly"]) / iters,
@@ -112,7 +113,8 @@ def run_size(n: int, out: Path) -> dict:
 def write_table(results: list[dict], info: dict) -> None:
     lines = [
         f"Machine: {info['cpu']}, {info['cores']} cores, {info['memory']}; Python {info['python']}, "
-        f"NumPy {info['numpy']}, SciPy {info['scipy']} (SuperLU), Numba {info['numba']}; {info['date']}.",
+        f"NumPy {info['numpy']}, SciPy {info['scipy']}, Numba {info['numba']}; {info['date']}; "
+        f"linear solver: {results[0]['solver']}.",
         "",
         "| N | dofs | elements | Newton its | assembly / it [s] | solve / it [s] | assembly per element [us] | set-up [s] | past peak |",
         "|---|---|---|---|---|---|---|---|---|",
@@ -136,15 +138,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[22, 70, 224, 708])
     ap.add_argument("--quick", action="store_true", help="only the two smallest sizes")
+    from rockfrac.solve.linear import available
+
+    default = "pardiso" if "pardiso" in available() else "superlu"
+    ap.add_argument("--solver", default=default, help=f"linear solver (default here: {default})")
     args = ap.parse_args()
     sizes = args.sizes[:2] if args.quick else args.sizes
     out = HERE / "results"
     out.mkdir(exist_ok=True)
     info = machine()
-    run_size(8, out / "warmup")  # compile the Numba kernels outside the timings
+    run_size(8, out / "warmup", args.solver)  # compile the Numba kernels outside the timings
     results = []
     for n in sizes:
-        r = run_size(n, out / "runs")
+        r = run_size(n, out / "runs", args.solver)
         results.append(r)
         print(json.dumps(r))
     (out / "engine.json").write_text(json.dumps({"machine": info, "results": results}, indent=1))

@@ -127,10 +127,20 @@ class LoadingSection(_Section):
 
 class LinearSolverName(str, Enum):
     superlu = "superlu"
+    pardiso = "pardiso"
 
 
 class SolverSection(_Section):
-    linear: LinearSolverName = LinearSolverName.superlu
+    linear: LinearSolverName = Field(LinearSolverName.superlu,
+                                     description="'superlu' (SciPy) or 'pardiso' (needs pypardiso)")
+
+    @model_validator(mode="after")
+    def _solver_installed(self) -> SolverSection:
+        from rockfrac.solve.linear import available
+
+        if self.linear.value not in available():
+            raise ValueError(f"linear = {self.linear.value!r} is not installed here; available: {available()}")
+        return self
     max_iterations: int = Field(25, ge=1)
     tol_residual: float = Field(1e-8, gt=0)
     tol_energy: float = Field(1e-10, gt=0)

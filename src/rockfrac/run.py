@@ -97,7 +97,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
             f"F={row['F_axial']:.6e} iterations={info.newton.iterations}")
         if progress is not None:
             progress(row)
-        if info.stage == "axial":
+        if info.stage.startswith("axial"):
             peak["F"] = max(peak["F"], row["F_axial"])
             if stop_frac is not None and row["F_axial"] < stop_frac * peak["F"]:
                 raise StopRun(f"force {row['F_axial']:.1f} N/m fell below {stop_frac} x peak {peak['F']:.1f} N/m")

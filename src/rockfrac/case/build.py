@@ -43,7 +43,7 @@ def resolve(case: Case) -> Case:
     """Fill the defaults that depend on the case (path-control sizes, RP augmentation)."""
     load = case.loading
     if load.control is Control.path:
-        nominal = abs(load.axial_displacement) / load.axial_steps
+        nominal = abs(load.axial_targets[0]) / load.axial_steps
         load = load.model_copy(update={"path_increment": load.path_increment or nominal,
                                        "max_steps": load.max_steps or 20 * load.axial_steps})
         case = case.model_copy(update={"loading": load})
@@ -104,13 +104,13 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, cohesive) -
     for side in ("left", "right"):
         edge_pressure(mesh.nodes, mesh.edge_sets[side], load.confinement, f_conf)
     n_d = model.dirichlet.shape[0]
-    d_conf = np.zeros(n_d)
-    d_axial = np.zeros(n_d)
-    d_axial[np.isin(model.dirichlet, top_y)] = -load.axial_displacement
-    return [
-        Stage("confinement", load.confinement_steps, d_conf, f_conf),
-        Stage("axial", load.axial_steps, d_axial, f_conf, _path(load, cohesive)),
-    ]
+    on_top = np.isin(model.dirichlet, top_y)
+    stages = [Stage("confinement", load.confinement_steps, np.zeros(n_d), f_conf)]
+    for k, target in enumerate(load.axial_targets):
+        d_axial = np.where(on_top, -target, 0.0)
+        name = "axial" if k == 0 else f"axial {k + 1}"
+        stages.append(Stage(name, load.axial_steps, d_axial, f_conf, _path(load, cohesive)))
+    return stages
 
 
 def _path(load, cohesive) -> PathSpec | None:

@@ -115,7 +115,9 @@ class LoadingSection(_Section):
 
     confinement: float = Field(ge=0, description="lateral confining pressure [Pa]")
     confinement_steps: int = Field(1, ge=1)
-    axial_displacement: float = Field(description="final top shortening [m] (negative: extension)")
+    axial_displacement: float | list[float] = Field(
+        description="top shortening [m] at the end of the axial stage (negative: extension); a list "
+        "gives successive targets (load, unload, reload...), each reached in axial_steps steps")
     axial_steps: int = Field(ge=1)
     control: Control = Control.displacement
     path_increment: float | None = Field(None, gt=0, description="path control: mean-jump increment [m]")
@@ -123,6 +125,21 @@ class LoadingSection(_Section):
     stop_below_peak_fraction: float | None = Field(
         None, gt=0, lt=1, description="stop once F_axial falls below this fraction of its peak"
     )
+
+    @property
+    def axial_targets(self) -> list[float]:
+        """Successive top-shortening targets [m]."""
+        a = self.axial_displacement
+        return list(a) if isinstance(a, list) else [a]
+
+    @model_validator(mode="after")
+    def _targets(self) -> LoadingSection:
+        t = self.axial_targets
+        if not t:
+            raise ValueError("axial_displacement: give at least one target")
+        if self.control is Control.path and len(t) > 1:
+            raise ValueError("control = 'path' follows a monotonic crack opening: use one axial_displacement")
+        return self
 
 
 class LinearSolverName(str, Enum):

@@ -102,12 +102,13 @@ def test_elastic_step_is_exact():
 # (state, du, law variant): elastic; compression-shear from a softened state; tension with a
 # little shear next to the corner (Table 1 and exactly degenerate a_F = 0); mixed tension-shear
 DEGENERATE = dataclasses.replace(EP, chi_p=TABLE1["c_p"] / math.tan(TABLE1["phi_p"]))
+UNEQUAL_GF = dataclasses.replace(EP, GfI=0.5e4, GfII=3.0e4)  # tells Carol's pairing from the paper's
 EP_CASES = {
     "elastic": (state(100.0, -2000.0), [1e-7, -1e-7], EP),
     "compression-shear softened": (state(1.0e4, -2.0e4, 0.0, 5e-4), [2e-6, 0.0], EP),
     "tension-shear near corner": (state(), [1e-7, 1.6e-5], EP),
     "tension-shear exact corner": (state(), [-1e-7, 1.6e-5], DEGENERATE),
-    "mixed tension-shear": (state(5000.0, 2000.0, 1e-4, 1e-4), [3e-6, 2e-6], EP),
+    "mixed tension-shear": (state(5000.0, 2000.0, 1e-4, 1e-4), [3e-6, 2e-6], UNEQUAL_GF),
 }
 
 
@@ -117,7 +118,7 @@ def test_ep_consistent_tangent_matches_finite_differences(name):
     p = variant.as_array()
     st, _, d = ep(du, s_old, p)
     assert st == (0 if name == "elastic" else 1)
-    d_fd = fd_tangent(lambda u: ep(u, s_old, p)[1], du, h=2e-10)
+    d_fd = fd_tangent(lambda u: ep(u, s_old, p)[1], du, h=5e-11)  # T changes by ~0.05 Pa
     assert rel_err(d, d_fd) < 1e-6
 
 
@@ -143,7 +144,7 @@ def test_ep_return_map_is_consistent(name):
 
 def test_local_jacobian_matches_finite_differences():
     """Analytic J of the local problem, every partial (ISVs, brackets, |.|), EP and RP forms."""
-    p = EP.as_array()
+    p = UNEQUAL_GF.as_array()
     du, t_old = np.array([2e-6, 1e-6]), np.array([3000.0, -1000.0])
     points = [
         np.array([4000.0, -6000.0, 1e-4, 3e-4, 2e-6]),  # compression-shear: eps_s row active
@@ -195,13 +196,13 @@ def opening_run(variant, n_steps, u_max=1e-3):
 def test_pure_opening_matches_closed_form_to_first_order():
     """chi_r = c_r = 0, alpha_chi = alpha_c = a, c_p > chi_p tan(phi_p): T_n = chi_p / (1 + a chi_p u_n^p / G_f^I)."""
     chi_p, a = 15680.0, 2.0e3
-    variant = dataclasses.replace(EP, c_p=2.0 * chi_p * math.tan(TABLE1["phi_p"]))
+    variant = dataclasses.replace(UNEQUAL_GF, c_p=2.0 * chi_p * math.tan(TABLE1["phi_p"]))
     errors = []
     for n in (40, 80, 160):
         r = opening_run(variant, n)
         assert np.all(r["T_t"] == 0.0) and np.all(r["jump_p_t"] == 0.0) and np.all(r["eps_s_p"] == 0.0)
         exact = chi_p / (1.0 + a * chi_p * r["jump_p_n"] / variant.GfI)
-        np.testing.assert_allclose(r["chi"], r["T_n"], rtol=1e-12)  # vertex of the hyperbola
+        np.testing.assert_allclose(r["T_n"], r["chi"], rtol=0, atol=1e-10 * S_REF)  # the vertex
         errors.append(np.abs(r["T_n"] - exact).max())
     assert r["T_n"][-1] < 0.3 * chi_p  # well into softening
     assert errors[0] < 0.03 * chi_p
@@ -225,7 +226,7 @@ def test_degenerate_corner_opening_converges(variant, shear):
     if shear == 0.0:
         assert np.all(r["T_t"] == 0.0)
         exact = variant.chi_p / (1.0 + 2e3 * variant.chi_p * r["jump_p_n"] / variant.GfI)
-        np.testing.assert_allclose(r["T_n"], exact, rtol=0.02)
+        np.testing.assert_allclose(r["T_n"][plastic], exact[plastic], rtol=0.01)
     else:
         assert np.all(r["T_t"][plastic] > 0.0) and np.all(r["eps_s_p"][plastic] > 0.0)
 
@@ -250,7 +251,7 @@ def test_cone_compression_shear_follows_yield_surface_and_softening():
     ut = np.linspace(0.0, 3e-4, 151)
     r = drive_path(EP, np.column_stack([ut, np.full_like(ut, un)]))
     plastic = r["jump_p_t"] > 0.0
-    assert plastic.sum() > 140
+    assert plastic.sum() > 130
     f = np.array([law.yield_function(*row, p) for row in
                   zip(r["T_t"], r["T_n"], r["eps_n_p"], r["eps_s_p"])])
     assert np.abs(f[plastic]).max() < 1e-8 * C_P
@@ -285,7 +286,8 @@ def test_rp_consistent_tangent_matches_finite_differences(name):
     np.testing.assert_array_equal(s[[S_UPT, S_UPN]], du)
     gt, gn = law.flow_direction(s[S_TT], s[S_TN], s[S_EPSN], s[S_EPSS], p)
     np.testing.assert_allclose(s[S_DGAMMA] * np.array([gt, gn]), du, rtol=1e-9)
-    d_fd = fd_tangent(lambda u: rp(u, s_old, p, guess)[1], du, h=1e-4 * np.abs(du).max())
+    h = 1e-5 * np.abs(du)[np.nonzero(du)].min()  # T(du) is sensitive to the direction of du
+    d_fd = fd_tangent(lambda u: rp(u, s_old, p, guess)[1], du, h)
     assert rel_err(d, d_fd) < 1e-6
     x = np.array([s[S_TT], s[S_TN], s[S_EPSN], s[S_EPSS], s[S_DGAMMA]])
     d_at = np.zeros((2, 2))
@@ -358,7 +360,7 @@ def test_ep_tends_to_rp_as_stiffness_grows():
         r = drive_path(dataclasses.replace(RP, kn=k, kt=k), path)
         got = np.column_stack([r["T_t"], r["T_n"], r["eps_n_p"], r["eps_s_p"]])
         errs.append(np.abs(got - ref).max(axis=0) / np.abs(ref).max(axis=0))
-    assert np.all(errs[1] < 2e-4)
+    assert np.all(errs[1] < 1.5e-3)
     ratio = errs[0] / errs[1]
     assert np.all((ratio > 8.0) & (ratio < 12.0))
 

@@ -304,25 +304,29 @@ def test_rp_inadmissible_direction_unloads(du):
     np.testing.assert_array_equal(s, state())
 
 
-def test_rp_predictor_solves_the_kinit_return():
-    """Sect. 6.2: T = T_lam - dgamma K^e g(T), F(T, q_old) = 0 with frozen ISVs."""
+def test_augmented_return_is_the_ep_return_with_stiffness_r():
+    """The RP element's return (K^e = r I, T_old = lambda) solves eq. (31) with kn = kt = r."""
     p = RP.as_array()
-    s_old = state(eps_n=1e-5, eps_s=2e-5)
-    t_lam = np.array([1.0e4, 1.0e3])
-    x = np.zeros(5)
-    assert law.rp_predictor(t_lam, s_old, p, x) == 0
-    assert x[4] > 0.0 and x[2] == 1e-5 and x[3] == 2e-5
-    assert abs(law.yield_function(x[0], x[1], x[2], x[3], p)) < 1e-8 * C_P
-    gt, gn = law.flow_direction(x[0], x[1], x[2], x[3], p)
-    np.testing.assert_allclose(x[:2], t_lam - x[4] * RP.k_init * np.array([gt, gn]), rtol=1e-10)
-    assert law.rp_predictor(np.array([0.0, -1e3]), s_old, p, x) == -2  # inside F: no plastic flow
+    r = 4.0e8
+    lam = np.array([6000.0, -1.0e4])
+    s_old = state(lam[0], lam[1], 1e-5, 2e-5)
+    h = np.array([2e-5, 1e-6])
+    s_new, d = np.zeros(N_STATE), np.zeros((2, 2))
+    assert law.return_map(h, s_old, np.array([1 / r, 1 / r]), p, s_new, d) == 1
+    st, s_ep, d_ep = ep(h, s_old, dataclasses.replace(RP, kn=r, kt=r).as_array())
+    assert st == 1
+    np.testing.assert_array_equal(s_new, s_ep)
+    np.testing.assert_array_equal(d, d_ep)
+    assert abs(yield_at(s_new, p)) < 1e-8 * C_P
+    gt, gn = law.flow_direction(s_new[S_TT], s_new[S_TN], s_new[S_EPSN], s_new[S_EPSS], p)
+    np.testing.assert_allclose(s_new[[S_TT, S_TN]], lam + r * h - r * s_new[S_DGAMMA] * np.array([gt, gn]),
+                               rtol=1e-10)
 
 
 def rp_path(increments, p):
-    """RP along plastic-jump increments (n, 2): predictor, then the previous solution as guess."""
+    """RP along plastic-jump increments (n, 2), each solve starting from the previous solution."""
     s = state()
     x = np.zeros(5)
-    assert law.rp_predictor(RP.k_init * increments[0], s, p, x) == 0
     out = []
     for du in increments:
         st, s_new, _ = rp(du, s, p, x)

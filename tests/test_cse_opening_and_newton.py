@@ -57,13 +57,15 @@ def test_plastic_steps_converge_quadratically(tmp_path, form, k):
     from rockfrac.case.schema import parse_case
     from rockfrac.run import run_case
 
-    run_case(parse_case(paper_case(form, k, axial_displacement=1.5e-3, axial_steps=60)), tmp_path)
+    case = paper_case(form, k, axial_displacement=1.5e-3, axial_steps=15)  # big steps: many iterations
+    case["solver"] = {"tol_residual": 1e-13, "tol_energy": 1e-20}
+    run_case(parse_case(case), tmp_path)
     steps = iteration_residuals((tmp_path / "run.log").read_text())
     orders = []
     for res in steps.values():
-        r = [x for x in res[1:] if x > 1e-11]  # above round-off
+        r = [x for x in res[1:] if x > 1e-13]  # 100 x above the round-off floor (~1e-15)
         for a, b, c in zip(r, r[1:], r[2:]):
             if b < 1e-2:  # in the asymptotic range
                 orders.append(np.log(c / b) / np.log(b / a))
-    assert len(orders) >= 10
-    assert np.median(orders) > 1.8
+    assert len(orders) >= 3
+    assert min(orders) > 1.7 and np.median(orders) > 1.8

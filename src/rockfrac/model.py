@@ -44,6 +44,9 @@ class Model:
                 g.set_offset(n)
                 n += g.n_extra
         self.n_dofs = n
+        for g in self.groups:
+            if hasattr(g, "set_dofs_total"):
+                g.set_dofs_total(n)
         self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
         data = np.zeros(self.pattern.nnz)
         for g, slots in zip(self.groups, self.pattern.slots):

@@ -30,13 +30,21 @@ class Built:
     cohesive: CohesiveEP | CohesiveRP | None
 
 
+AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
+
+
 def default_augmentation(case: Case, mesh: Mesh) -> float:
-    """Augmentation r [Pa/m] of the same order as the bulk stiffness seen by the surface: E / h."""
+    """Augmentation r [Pa/m]: the bulk stiffness seen by the surface, E / h, or ten times the
+    law's steepest softening slope if that is larger (the augmented return is then unique).
+
+    The converged solution does not depend on r; it only shapes the iterations.
+    """
     x = mesh.nodes[mesh.quads]
     area = 0.5 * np.abs(
         np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, 1) - np.roll(x[:, :, 0], -1, 1) * x[:, :, 1], 1)
     )
-    return float(case.bulk.E / np.sqrt(area.mean()))
+    law = law_of_section(case.cohesive)
+    return float(max(case.bulk.E / np.sqrt(area.mean()), AUGMENTATION_SAFETY * law.softening_modulus()))
 
 
 def resolve(case: Case) -> Case:
@@ -52,7 +60,7 @@ def resolve(case: Case) -> Case:
         return case
     mesh = make_mesh(case)
     r = coh.augmentation or default_augmentation(case, mesh)
-    coh = coh.model_copy(update={"augmentation": r, "k_init": coh.k_init or r})
+    coh = coh.model_copy(update={"augmentation": r})
     return case.model_copy(update={"cohesive": coh})
 
 

@@ -79,9 +79,6 @@ class CohesiveSection(TractionLaw):
     kn: float | None = Field(None, gt=0, description="EP only: normal penalty stiffness [Pa/m]")
     kt: float | None = Field(None, gt=0, description="EP only: tangential penalty stiffness [Pa/m]")
     augmentation: float | None = Field(None, gt=0, description="RP only: augmentation r [Pa/m]")
-    k_init: float | None = Field(
-        None, gt=0, description="RP only: stiffness of the first-plastic-iteration predictor [Pa/m]"
-    )
 
     @model_validator(mode="after")
     def _form_keys(self) -> CohesiveSection:
@@ -89,9 +86,9 @@ class CohesiveSection(TractionLaw):
             missing = [k for k in ("kn", "kt") if getattr(self, k) is None]
             if missing:
                 raise ValueError(f"form = 'ep' needs {', '.join(missing)} (penalty stiffness, Pa/m)")
-            extra = [k for k in ("augmentation", "k_init") if getattr(self, k) is not None]
+            extra = [k for k in ("augmentation",) if getattr(self, k) is not None]
             if extra:
-                raise ValueError(f"{', '.join(extra)} only apply to form = 'rp'")
+                raise ValueError("augmentation only applies to form = 'rp'")
         else:
             extra = [k for k in ("kn", "kt") if getattr(self, k) is not None]
             if extra:

@@ -6,13 +6,15 @@ keeps its committed and trial state apart and commits only on request.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from rockfrac.elements import cse
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.elements.solid import Evaluation
 from rockfrac.laws import cohesive as _law
-from rockfrac.laws.cohesive_params import N_STATE, S_EPSN, S_EPSS, S_MODE, CohesiveLaw
+from rockfrac.laws.cohesive_params import N_STATE, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT, CohesiveLaw
 
 
 class _CohesiveGroup:
@@ -30,6 +32,10 @@ class _CohesiveGroup:
         self.tangent = np.zeros((n, 2, 2))  # committed local tangent dT/d[[u]]
         self.trial_tangent = np.zeros((n, 2, 2))
         self.status = np.zeros(n, dtype=np.int64)
+        self._n_dofs = 0  # set by the model (size of the global vector)
+
+    def set_dofs_total(self, n_dofs: int) -> None:
+        self._n_dofs = n_dofs
 
     def begin_step(self) -> None:
         self.trial[:] = self.state
@@ -43,24 +49,37 @@ class _CohesiveGroup:
         """True if a point of the committed state is plastic."""
         return bool(np.any(self.state[:, S_MODE] == 1.0))
 
-    def jump_measure(self, u: np.ndarray) -> tuple[float, np.ndarray]:
-        """Weighted mean jump magnitude sum(w |[[u]]|)/sum(w) [m] and its gradient w.r.t. u.
+    def flow_directions(self) -> np.ndarray:
+        """Unit global-frame directions (n_pts, 2) of dG/dT at the committed tractions.
 
-        The path-following measure: it grows monotonically through softening and snap-back.
+        Where each point slides or opens next under continued loading; the normal n where dG/dT
+        vanishes (no shear traction and no dilatancy).
+        """
+        s = self.state
+        g = _law.flow_points(np.ascontiguousarray(s[:, S_TT]), np.ascontiguousarray(s[:, S_TN]),
+                             np.ascontiguousarray(s[:, S_EPSN]), np.ascontiguousarray(s[:, S_EPSS]), self.p)
+        norm = np.linalg.norm(g, axis=1)
+        g = np.where(norm[:, None] > 0.0, g / np.where(norm > 0.0, norm, 1.0)[:, None], [0.0, 1.0])
+        return np.einsum("pji,pj->pi", self.points.frame, g)  # R^T g
+
+    def jump_measure(self) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
+        """Path-following measure for the next step: g(u) = sum(w m . [[u]]) / sum(w) [m], and dg/du.
+
+        m are the flow directions of the committed state, frozen for the step, so g is linear in u
+        and a positive increment means forward plastic flow (never the mirrored, unloading branch).
         """
         pts = self.points
-        j = pts.jumps(u)
-        norm = np.hypot(j[:, 0], j[:, 1])
-        wsum = pts.weight.sum()
-        g = float(pts.weight @ norm / wsum)
-        safe = np.where(norm > 0.0, norm, 1.0)
-        dj = np.where(norm[:, None] > 0.0, j / safe[:, None], 0.0) * (pts.weight / wsum)[:, None]
-        grad = np.zeros(u.shape[0])
-        np.add.at(grad, 2 * pts.plus, dj[:, 0])
-        np.add.at(grad, 2 * pts.plus + 1, dj[:, 1])
-        np.add.at(grad, 2 * pts.minus, -dj[:, 0])
-        np.add.at(grad, 2 * pts.minus + 1, -dj[:, 1])
-        return g, grad
+        m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]
+        grad = np.zeros(self._n_dofs)
+        np.add.at(grad, 2 * pts.plus, m[:, 0])
+        np.add.at(grad, 2 * pts.plus + 1, m[:, 1])
+        np.add.at(grad, 2 * pts.minus, -m[:, 0])
+        np.add.at(grad, 2 * pts.minus + 1, -m[:, 1])
+
+        def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
+            return float(np.sum(m * pts.jumps(u))), grad
+
+        return measure
 
     def records(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """Committed per-point quantities in the local frame (for points.csv)."""
@@ -110,7 +129,7 @@ class CohesiveEP(_CohesiveGroup):
         n = pts.n
         fe = np.empty((n, 4))
         ke = np.empty((n, 4, 4))
-        cse.ep_points(pts.frame, pts.weight, djump, self.state, self.p, self.trial,
+        cse.ep_points(pts.frame, pts.weight, djump, self.state, self.tangent, self.p, self.trial,
                       self.trial_tangent, fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
@@ -120,7 +139,9 @@ class CohesiveEP(_CohesiveGroup):
 class CohesiveRP(_CohesiveGroup):
     """Rigid-plastic CSE with augmented Lagrange multipliers (paper Sect. 6.2, eq. 32-34).
 
-    Owns two multiplier dofs (global-frame traction) per point, numbered from ``offset``.
+    Owns two multiplier dofs (global-frame traction) per point, numbered from ``offset``; see
+    :func:`rockfrac.elements.cse.rp_points` for the augmented return and why its converged
+    state solves eq. (34).
     """
 
     def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float):
@@ -146,10 +167,11 @@ class CohesiveRP(_CohesiveGroup):
         fe = np.empty((n, 6))
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
-        prev = self.trial.copy()
+        mode_prev = self.trial[:, S_MODE].copy()
         cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.state,
-                      prev, self.tangent, self.p, self.trial, self.trial_tangent, fe, ke,
+                      self.tangent, mode_prev, self.p, self.trial, self.trial_tangent, fe, ke,
                       self.status, switched)
         bad = np.flatnonzero(self.status < 0)
-        msg = f"RP local problem (34) failed at interface points {bad[:5].tolist()}" if bad.size else ""
+        msg = (f"RP return map failed at interface points {bad[:5].tolist()} (if the law softens faster "
+               f"than the augmentation r = {self.aug:.3g} Pa/m, raise [cohesive] augmentation)") if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, n_switched=int(switched.sum()), message=msg)

@@ -46,7 +46,6 @@ from rockfrac.laws.cohesive_params import (
     P_CT,
     P_GF1,
     P_GF2,
-    P_KINIT,
     P_TANPHI_P,
     P_TANPHI_R,
     P_TANPSI_P,
@@ -149,6 +148,17 @@ def flow_direction(Tt, Tn, eps_n, eps_s, p):
     chi, c, _, tpsi = strengths(eps_n, eps_s, p)
     a_g = c - chi * tpsi
     return _ratio(Tt, math.sqrt(Tt * Tt + a_g * a_g)), tpsi
+
+
+@nb.njit(cache=True, parallel=True)
+def flow_points(tt, tn, eps_n, eps_s, p):
+    """Flow directions dG/dT (n, 2) [-] at many points (local frame)."""
+    out = np.empty((tt.shape[0], 2))
+    for i in nb.prange(tt.shape[0]):
+        g = flow_direction(tt[i], tn[i], eps_n[i], eps_s[i], p)
+        out[i, 0] = g[0]
+        out[i, 1] = g[1]
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -448,31 +458,30 @@ def _elastic_tol(p):
 
 
 @nb.njit(cache=True)
-def _ep_elastic(t_tr, s_old, p, s_new, D):
-    """Elastic EP step: T = T^tr, D = K^e = diag(kt, kn) [Pa/m], ISVs unchanged."""
+def _ep_elastic(t_tr, s_old, comp, s_new, D):
+    """Elastic step: T = T^tr, D = K^e = diag(1/comp) [Pa/m], ISVs unchanged."""
     for k in range(N_STATE):
         s_new[k] = s_old[k]
     s_new[S_TT] = t_tr[0]
     s_new[S_TN] = t_tr[1]
     s_new[S_DGAMMA] = 0.0
     s_new[S_MODE] = MODE_ELASTIC
-    D[0, 0] = 1.0 / p[P_CT]
+    D[0, 0] = 1.0 / comp[0]
     D[0, 1] = 0.0
     D[1, 0] = 0.0
-    D[1, 1] = 1.0 / p[P_CN]
+    D[1, 1] = 1.0 / comp[1]
     return ST_ELASTIC
 
 
 @nb.njit(cache=True)
-def ep_update(du, s_old, p, s_new, D):
-    """EP return map (eq. 30-31, backward Euler) for the local jump increment du (2,) [m].
+def return_map(du, s_old, comp, p, s_new, D):
+    """Backward-Euler return (eq. 30-31) from T^tr = T_old + K^e du, K^e = diag(1/comp) [Pa/m].
 
-    s_old/s_new: committed/new state (N_STATE,); D (2, 2): consistent tangent dT/d[[u]] [Pa/m].
+    du (2,): local jump increment [m]; s_old/s_new: committed/new state (N_STATE,), T_old is
+    s_old's traction; D (2, 2): consistent tangent dT/d(du) [Pa/m]. The EP CSE passes its
+    penalty compliances, the RP CSE its augmentation (K^e = r I) with T_old = lambda.
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
     """
-    comp = np.empty(2)
-    comp[0] = p[P_CT]
-    comp[1] = p[P_CN]
     t_old = np.empty(2)
     t_old[0] = s_old[S_TT]
     t_old[1] = s_old[S_TN]
@@ -481,7 +490,7 @@ def ep_update(du, s_old, p, s_new, D):
     t_tr[0] = t_old[0] + du[0] / comp[0]
     t_tr[1] = t_old[1] + du[1] / comp[1]
     if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
-        return _ep_elastic(t_tr, s_old, p, s_new, D)
+        return _ep_elastic(t_tr, s_old, comp, s_new, D)
     x = np.empty(5)
     x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
     sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
@@ -497,6 +506,15 @@ def ep_update(du, s_old, p, s_new, D):
     gt, gn = flow_direction(x[0], x[1], x[2], x[3], p)
     _commit(x, x[4] * gt, x[4] * gn, s_old, s_new)
     return ST_PLASTIC
+
+
+@nb.njit(cache=True)
+def ep_update(du, s_old, p, s_new, D):
+    """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m]."""
+    comp = np.empty(2)
+    comp[0] = p[P_CT]
+    comp[1] = p[P_CN]
+    return return_map(du, s_old, comp, p, s_new, D)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -596,28 +614,3 @@ def rp_tangent_at(x, du, s_old, p, D):
     if _tangent(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, D):
         return 0
     return ST_SINGULAR
-
-
-@nb.njit(cache=True)
-def rp_predictor(T_lam, s_old, p, x_out):
-    """First plastic iteration of RP (Sect. 6.2): T = T_lam - dgamma K^e g(T), F(T, q_old) = 0.
-
-    K^e = diag(k_init, k_init) [Pa/m]; the ISVs are frozen at their committed values (the first
-    iteration only needs a starting point). x_out = (T_t, T_n, eps_n_old, eps_s_old, dgamma [m]).
-    Returns 0 on success, -2 if dgamma <= 0 (T_lam not outside F), -1/-3 on failure.
-    """
-    comp = np.empty(2)
-    comp[0] = 1.0 / p[P_KINIT]
-    comp[1] = comp[0]
-    t_lam = np.empty(2)
-    t_lam[0] = T_lam[0]
-    t_lam[1] = T_lam[1]
-    du = np.zeros(2)  # with T_old := T_lam the jump rows read -C (T - T_lam) - dgamma g = 0
-    en, es = s_old[S_EPSN], s_old[S_EPSS]
-    x_out[0], x_out[1], x_out[2], x_out[3], x_out[4] = t_lam[0], t_lam[1], en, es, 0.0
-    st = _newton(x_out, du, t_lam, en, es, comp, p, 1.0, _sign(t_lam[0]))
-    if st < 0:
-        return st
-    if not x_out[4] > 0.0:
-        return ST_UNLOAD
-    return 0

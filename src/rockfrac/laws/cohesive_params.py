@@ -27,8 +27,7 @@ P_A_CHI = 11  # softening rate of chi (dimensionless)
 P_A_C = 12  # softening rate of c
 P_A_PHI = 13  # softening rate of tan(phi)
 P_A_PSI = 14  # softening rate of tan(psi)
-P_KINIT = 15  # stiffness of the RP first-plastic-step predictor only [Pa/m]
-N_PARAMS = 16
+N_PARAMS = 15
 
 # --- state vector slots (per integration point) ------------------------------------------
 S_TT = 0  # tangential traction T_t [Pa]
@@ -64,11 +63,25 @@ class CohesiveLaw:
     alpha_psi: float
     kn: float | None = None  # None (or inf) -> rigid-plastic form
     kt: float | None = None
-    k_init: float = 1.0e10  # RP only: predictor stiffness of the first plastic iteration
 
     @property
     def rigid(self) -> bool:
         return self.kn is None or self.kt is None or math.isinf(self.kn) or math.isinf(self.kt)
+
+    def softening_modulus(self) -> float:
+        """Upper estimate [Pa/m] of the steepest softening slope dF/d[[u^p]] at the peak.
+
+        Opening: (alpha_chi dchi + alpha_c dc) chi_p / G_f^I; slip: (alpha_c dc + alpha_chi dchi
+        tan phi_p) c_p / G_f^II plus the friction loss alpha_phi dtan(phi) |T_n| c_p / G_f^II with
+        |T_n| ~ max(chi_p, c_p / tan phi_p). A return map with stiffness k is unique when k exceeds it.
+        """
+        d_chi, d_c = self.chi_p - self.chi_r, self.c_p - self.c_r
+        tp, d_tp = math.tan(self.phi_p), math.tan(self.phi_p) - math.tan(self.phi_r)
+        t_n = max(self.chi_p, self.c_p / tp if tp > 0 else self.chi_p)
+        opening = (self.alpha_chi * d_chi + self.alpha_c * d_c) * self.chi_p / self.GfI
+        slip = ((self.alpha_c * d_c + self.alpha_chi * d_chi * tp) * self.c_p
+                + self.alpha_phi * d_tp * t_n * self.c_p) / self.GfII
+        return max(opening, slip)
 
     def as_array(self) -> np.ndarray:
         p = np.zeros(N_PARAMS)
@@ -88,7 +101,6 @@ class CohesiveLaw:
         p[P_A_C] = self.alpha_c
         p[P_A_PHI] = self.alpha_phi
         p[P_A_PSI] = self.alpha_psi
-        p[P_KINIT] = self.k_init
         return p
 
 

@@ -4,6 +4,8 @@ Loads depend on a load factor lam: prescribed values d(lam) = d0 + lam dd on the
 and external forces f(lam) = f0 + lam df. Under load control lam is given; under path control
 (indirect displacement control) lam is an extra unknown fixed by a scalar constraint
 g(u) = target, solved with the bordered scheme: two right-hand sides on one factorization.
+Where g does not respond to lam at all (a rigid-plastic surface still fully constrained), the
+iteration takes a load-controlled predictor increment instead, until the surface yields.
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
@@ -54,6 +56,7 @@ class PathControl:
     measure: Callable[[np.ndarray], tuple[float, np.ndarray]]
     target: float
     tolerance: float  # absolute tolerance on g - target
+    predictor: float = 0.0  # load-factor increment of an iteration where g does not respond to lam
 
 
 @dataclass
@@ -143,7 +146,11 @@ def newton_step(
             du = lu.solve(rhs)
             if control is not None:
                 du_b = lu.solve(rhs_b)
-                dlam = (control.target - g - grad @ du) / (grad @ du_b)
+                slope = grad @ du_b
+                if abs(slope) > 1e-12 * np.linalg.norm(grad) * np.linalg.norm(du_b):
+                    dlam = (control.target - g - grad @ du) / slope
+                else:  # rigid (all constrained): g cannot move yet, so push the load instead
+                    dlam = control.predictor
                 du = du + dlam * du_b
                 u_lam += dlam
         except RuntimeError as err:  # exactly singular factor

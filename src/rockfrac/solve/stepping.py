@@ -3,8 +3,8 @@
 A stage ramps the prescribed displacements and the external forces from their values at its
 start to its end values with a load factor lam: 0 -> 1. Steps are load-controlled (lam given)
 until the stage's ``path`` (if any) becomes active, or a load-controlled step fails where the
-path measure is already positive (a limit point); from then on each step prescribes an
-increment of a path measure (e.g. the mean crack jump) and lam is solved for, so limit points
+path is available (a limit point, or a snap-back at activation); from then on each step prescribes an
+increment of a path measure (e.g. the mean crack jump along the flow directions) and lam is solved for, so limit points
 and snap-backs are traced. Each converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
 keeping every converged step.
@@ -26,7 +26,7 @@ from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathContro
 class PathSpec:
     """Indirect displacement control of a stage once ``active()`` is true."""
 
-    measure: Callable[[np.ndarray], tuple[float, np.ndarray]]
+    measure: Callable[[], Callable[[np.ndarray], tuple[float, np.ndarray]]]  # fresh g(u) per step
     increment: float  # nominal increment of the measure per step
     active: Callable[[], bool]  # evaluated on the committed state
     max_steps: int
@@ -104,9 +104,10 @@ def run_stages(
             use_path = stage.path is not None and (forced or stage.path.active())
             mode = "path" if use_path else "load"
             if use_path:
-                g_now, _ = stage.path.measure(u)
+                measure = stage.path.measure()  # directions frozen at the committed state
+                g_now, _ = measure(u)
                 target = g_now + size["path"]
-                ctrl = PathControl(stage.path.measure, target, 1e-9 * nominal["path"])
+                ctrl = PathControl(measure, target, 1e-9 * nominal["path"], size["load"])
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
                 if res.converged and res.lam > 1.0:  # land exactly on the stage end
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
@@ -114,8 +115,7 @@ def run_stages(
                 size["load"] = min(size["load"], 1.0 - lam)
                 res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
-            if (not res.converged and mode == "load" and stage.path is not None
-                    and stage.path.measure(u)[0] > 1e-6 * stage.path.increment):
+            if not res.converged and mode == "load" and stage.path is not None:
                 forced = True  # a limit point under load control: follow the path from here
                 log(f"  {stage.name}: load-controlled step from lam={lam:.6f} failed ({res.message}); "
                     "switching to path control")

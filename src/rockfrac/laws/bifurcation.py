@@ -1,0 +1,506 @@
+"""Loss of ellipticity of the acoustic tensor (paper eq. 7-8) and its closed forms for Drucker-Prager.
+
+``A_ik(n) = n_j C_ijkl n_l``; in the Voigt convention of :mod:`rockfrac.laws.drucker_prager_params`
+(C maps strain-like to stress-like) ``A = N(n)^T C N(n)`` with ``N(n) a`` the strain-like Voigt
+vector of ``sym(a x n)``. The indicator is ``det A(n) / det A^e(n)`` (1 for an elastic tangent);
+localization when its minimum over unit normals is ``<= 0``. ``A(n) = A(-n)``, so plane-strain
+normals ``n = (cos t, sin t, 0)`` sweep ``t in [0, pi)`` and 3D normals a hemisphere.
+
+Angles: the *normal angle* is that of ``n`` from the x axis (in the x-y plane), in ``[0, 180)``
+degrees; the *band angle* (the crack trace from horizontal) is the normal angle minus 90 degrees,
+normalized to ``(-90, 90]``. The slip direction m is the unit null vector of A (``A m = 0``), signed
+so that ``m . n >= 0`` (opening for a dilatant band).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from rockfrac.laws import drucker_prager as dp
+from rockfrac.laws.drucker_prager_params import DruckerPrager
+
+N_SWEEP = 360  # plane-strain sweep points over [0, pi)
+N_POLAR = 60  # 3D sweep: polar levels over (0, pi), full sphere
+N_AZIMUTH = 120  # 3D sweep: azimuths over [0, 2 pi)
+
+
+# --------------------------------------------------------------------------------------------
+# acoustic tensor, its determinant and gradients (Numba)
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _acoustic(c, n, out):
+    """out (3, 3) = N(n)^T c N(n): A_ik = n_j C_ijkl n_l for c (6, 6) Voigt."""
+    nm = np.zeros((6, 3))  # strain-like sym(a x n) = nm @ a
+    nm[0, 0] = n[0]
+    nm[1, 1] = n[1]
+    nm[2, 2] = n[2]
+    nm[3, 0], nm[3, 1] = n[1], n[0]
+    nm[4, 1], nm[4, 2] = n[2], n[1]
+    nm[5, 0], nm[5, 2] = n[2], n[0]
+    cn = np.zeros((6, 3))
+    for a in range(6):
+        for k in range(3):
+            acc = 0.0
+            for b in range(6):
+                acc += c[a, b] * nm[b, k]
+            cn[a, k] = acc
+    for i in range(3):
+        for k in range(3):
+            acc = 0.0
+            for a in range(6):
+                acc += nm[a, i] * cn[a, k]
+            out[i, k] = acc
+
+
+@nb.njit(cache=True)
+def acoustic_tensor(c, n):
+    """Acoustic tensor A(n) (3, 3) [Pa] of the Voigt modulus c (6, 6) for the normal n (3,)."""
+    out = np.empty((3, 3))
+    _acoustic(c, n, out)
+    return out
+
+
+@nb.njit(cache=True)
+def _cofactor(a, cof):
+    """cof (3, 3) = d det(a) / d a_ik; returns det(a)."""
+    cof[0, 0] = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    cof[0, 1] = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    cof[0, 2] = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    cof[1, 0] = a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]
+    cof[1, 1] = a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]
+    cof[1, 2] = a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]
+    cof[2, 0] = a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]
+    cof[2, 1] = a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]
+    cof[2, 2] = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    return a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1] + a[0, 2] * cof[0, 2]
+
+
+@nb.njit(cache=True)
+def _det_grad(c, n, grad):
+    """det A(n) and grad (3,) = d det A / d n (n not normalized: A is quadratic in n).
+
+    dA_ik/dn_m = C_imkl n_l + n_j C_ijkm, i.e. N(e_m)^T c N(n) + N(n)^T c N(e_m).
+    """
+    a = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    _acoustic(c, n, a)
+    det = _cofactor(a, cof)
+    e = np.zeros(3)
+    em = np.empty((3, 3))
+    ep = np.empty((3, 3))
+    for m in range(3):
+        e[:] = 0.0
+        e[m] = 1.0
+        _acoustic(c, n + e, ep)  # A is quadratic in n: A(n + e) - A(n - e) = 2 dA/dn_m exactly
+        _acoustic(c, n - e, em)
+        acc = 0.0
+        for i in range(3):
+            for k in range(3):
+                acc += cof[i, k] * 0.5 * (ep[i, k] - em[i, k])
+        grad[m] = acc
+    return det
+
+
+@nb.njit(cache=True)
+def _ratio_grad(c, ce, n, grad):
+    """r = det A(n) / det A^e(n) and grad (3,) = dr/dn."""
+    g1 = np.empty(3)
+    g2 = np.empty(3)
+    d1 = _det_grad(c, n, g1)
+    d2 = _det_grad(ce, n, g2)
+    for m in range(3):
+        grad[m] = (g1[m] * d2 - d1 * g2[m]) / (d2 * d2)
+    return d1 / d2
+
+
+@nb.njit(cache=True)
+def _ratio(c, ce, n):
+    """det A(n) / det A^e(n)."""
+    a = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    _acoustic(c, n, a)
+    d1 = _cofactor(a, cof)
+    _acoustic(ce, n, a)
+    return d1 / _cofactor(a, cof)
+
+
+@nb.njit(cache=True)
+def det_ratios(c, ce, normals):
+    """det A(n) / det A^e(n) at each row of normals (k, 3); returns (k,)."""
+    out = np.empty(normals.shape[0])
+    for i in range(normals.shape[0]):
+        out[i] = _ratio(c, ce, normals[i])
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# plane strain: sweep, then bisection on d r / d theta around each local minimum
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _dtheta(c, ce, t):
+    """d r / d theta at n = (cos t, sin t, 0)."""
+    n = np.array([math.cos(t), math.sin(t), 0.0])
+    g = np.empty(3)
+    _ratio_grad(c, ce, n, g)
+    return -math.sin(t) * g[0] + math.cos(t) * g[1]
+
+
+@nb.njit(cache=True)
+def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
+    """Local minima of r(theta) over [0, pi): fills theta_out, ratio_out; returns their count.
+
+    A sweep point is a minimum if r is strictly below its left and not above its right neighbour
+    (periodic); it is refined by bisection of dr/dtheta on [t - h, t + h] where the sign changes.
+    """
+    h = math.pi / n_sweep
+    r = np.empty(n_sweep)
+    for i in range(n_sweep):
+        t = i * h
+        r[i] = _ratio(c, ce, np.array([math.cos(t), math.sin(t), 0.0]))
+    count = 0
+    for i in range(n_sweep):
+        if not (r[i] < r[(i - 1) % n_sweep] and r[i] <= r[(i + 1) % n_sweep]):
+            continue
+        lo, hi = i * h - h, i * h + h
+        t = i * h
+        if _dtheta(c, ce, lo) < 0.0 and _dtheta(c, ce, hi) > 0.0:
+            for _ in range(200):
+                mid = 0.5 * (lo + hi)
+                if mid <= lo or mid >= hi:
+                    break
+                if _dtheta(c, ce, mid) > 0.0:
+                    hi = mid
+                else:
+                    lo = mid
+            t = 0.5 * (lo + hi)
+        t = t % math.pi
+        theta_out[count] = t
+        ratio_out[count] = _ratio(c, ce, np.array([math.cos(t), math.sin(t), 0.0]))
+        count += 1
+    return count
+
+
+# --------------------------------------------------------------------------------------------
+# 3D: sweep over the sphere, then Newton on the tangent plane (analytic gradient, FD Hessian)
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _chart(n):
+    """Two unit vectors e1, e2 completing n to an orthonormal basis."""
+    k = 0
+    for j in range(1, 3):
+        if abs(n[j]) < abs(n[k]):
+            k = j
+    a = np.zeros(3)
+    a[k] = 1.0
+    e1 = a - (a @ n) * n
+    e1 /= math.sqrt(e1 @ e1)
+    e2 = np.array([n[1] * e1[2] - n[2] * e1[1], n[2] * e1[0] - n[0] * e1[2], n[0] * e1[1] - n[1] * e1[0]])
+    return e1, e2
+
+
+@nb.njit(cache=True)
+def _chart_grad(c, ce, n, e1, e2, u, v, out):
+    """r and (dr/du, dr/dv) at m = n + u e1 + v e2 normalized."""
+    m = n + u * e1 + v * e2
+    lm = math.sqrt(m @ m)
+    m = m / lm
+    g = np.empty(3)
+    r = _ratio_grad(c, ce, m, g)
+    gp = (g - (g @ m) * m) / lm
+    out[0] = gp @ e1
+    out[1] = gp @ e2
+    return r
+
+
+@nb.njit(cache=True)
+def _refine_sphere(c, ce, n0):
+    """Local minimum of r on the unit sphere from n0 (3,): damped Newton in a moving chart."""
+    n = n0 / math.sqrt(n0 @ n0)
+    g = np.empty(2)
+    gp = np.empty(2)
+    gm = np.empty(2)
+    hs = 1.0e-5
+    for _ in range(60):
+        e1, e2 = _chart(n)
+        r0 = _chart_grad(c, ce, n, e1, e2, 0.0, 0.0, g)
+        hm = np.empty((2, 2))
+        _chart_grad(c, ce, n, e1, e2, hs, 0.0, gp)
+        _chart_grad(c, ce, n, e1, e2, -hs, 0.0, gm)
+        hm[:, 0] = (gp - gm) / (2.0 * hs)
+        _chart_grad(c, ce, n, e1, e2, 0.0, hs, gp)
+        _chart_grad(c, ce, n, e1, e2, 0.0, -hs, gm)
+        hm[:, 1] = (gp - gm) / (2.0 * hs)
+        off = 0.5 * (hm[0, 1] + hm[1, 0])
+        det = hm[0, 0] * hm[1, 1] - off * off
+        if det > 0.0 and hm[0, 0] > 0.0:
+            du = -(hm[1, 1] * g[0] - off * g[1]) / det
+            dv = -(hm[0, 0] * g[1] - off * g[0]) / det
+        else:  # not convex here: steepest descent with a step of at most 0.05 rad
+            gn = math.sqrt(g @ g)
+            if gn == 0.0:
+                break
+            du, dv = -0.05 * g[0] / gn, -0.05 * g[1] / gn
+        step = math.sqrt(du * du + dv * dv)
+        if step > 0.1:
+            du, dv = 0.1 * du / step, 0.1 * dv / step
+            step = 0.1
+        alpha = 1.0
+        for _ls in range(30):
+            m = n + alpha * (du * e1 + dv * e2)
+            m = m / math.sqrt(m @ m)
+            if _ratio(c, ce, m) <= r0 + 1.0e-15 * max(abs(r0), 1.0):
+                break
+            alpha *= 0.5
+        n = m
+        if alpha * step < 1.0e-13:
+            break
+    return n
+
+
+@nb.njit(cache=True)
+def _sphere_candidates(c, ce, n_polar, n_azimuth, max_candidates):
+    """Local minima of r on a (polar, azimuth) grid of the sphere (at most max_candidates, lowest)."""
+    r = np.empty((n_polar, n_azimuth))
+    pts = np.empty((n_polar, n_azimuth, 3))
+    for i in range(n_polar):
+        th = math.pi * (i + 0.5) / n_polar
+        for j in range(n_azimuth):
+            ph = 2.0 * math.pi * j / n_azimuth
+            pts[i, j, 0] = math.sin(th) * math.cos(ph)
+            pts[i, j, 1] = math.sin(th) * math.sin(ph)
+            pts[i, j, 2] = math.cos(th)
+            r[i, j] = _ratio(c, ce, pts[i, j])
+    cand = np.empty((max_candidates, 3))
+    cval = np.empty(max_candidates)
+    count = 0
+    for i in range(n_polar):
+        for j in range(n_azimuth):
+            is_min = True
+            for di in range(-1, 2):
+                for dj in range(-1, 2):
+                    if di == 0 and dj == 0:
+                        continue
+                    ii = i + di
+                    if ii < 0 or ii >= n_polar:
+                        continue
+                    jj = (j + dj) % n_azimuth
+                    rn = r[ii, jj]  # ties go to the lower flat index (symmetric grids tie a lot)
+                    if rn < r[i, j] or (rn == r[i, j] and ii * n_azimuth + jj < i * n_azimuth + j):
+                        is_min = False
+            if not is_min:
+                continue
+            if count < max_candidates:
+                cand[count] = pts[i, j]
+                cval[count] = r[i, j]
+                count += 1
+            else:  # keep the lowest max_candidates
+                worst = np.argmax(cval)
+                if r[i, j] < cval[worst]:
+                    cand[worst] = pts[i, j]
+                    cval[worst] = r[i, j]
+    if count == 0:
+        k = np.argmin(r)
+        cand[0] = pts.reshape(-1, 3)[k]
+        count = 1
+    return cand[:count]
+
+
+# --------------------------------------------------------------------------------------------
+# result object and public searches
+# --------------------------------------------------------------------------------------------
+
+
+def _canonical(n: np.ndarray) -> np.ndarray:
+    """Sign of n fixed so that the first nonzero of (n_y, n_x, n_z) is positive."""
+    for k in (1, 0, 2):
+        if abs(n[k]) > 1.0e-14:
+            return n if n[k] > 0.0 else -n
+    return n
+
+
+def slip_direction(c: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Unit m with A(n) m ~ 0 (right singular vector of the smallest singular value), m . n >= 0."""
+    _, _, vt = np.linalg.svd(acoustic_tensor(np.ascontiguousarray(c, dtype=float), np.asarray(n, float)))
+    m = vt[-1]
+    d = float(m @ n)
+    if d < 0.0 or (d == 0.0 and _canonical(m)[0] != m[0]):
+        m = -m
+    return m
+
+
+@dataclass(frozen=True)
+class Localization:
+    """Local minima of det A(n)/det A^e(n), lowest first: normals (k, 3), ratios (k,), slips (k, 3)."""
+
+    normals: np.ndarray
+    ratios: np.ndarray
+    slips: np.ndarray
+
+    @property
+    def min_ratio(self) -> float:
+        """Minimum of det A / det A^e over the normals (<= 0: localized)."""
+        return float(self.ratios[0])
+
+    @property
+    def localized(self) -> bool:
+        return self.min_ratio <= 0.0
+
+    @property
+    def normal_angles(self) -> np.ndarray:
+        """Angles of the normals' x-y projections from the x axis [rad], in [0, pi)."""
+        return np.mod(np.arctan2(self.normals[:, 1], self.normals[:, 0]), math.pi)
+
+    @property
+    def band_angles(self) -> np.ndarray:
+        """Band (crack trace) angles from the x axis [rad], normal angle - pi/2 in (-pi/2, pi/2]."""
+        a = self.normal_angles - 0.5 * math.pi
+        return np.where(a <= -0.5 * math.pi, a + math.pi, a)
+
+    @property
+    def normal_angles_deg(self) -> np.ndarray:
+        return np.degrees(self.normal_angles)
+
+    @property
+    def band_angles_deg(self) -> np.ndarray:
+        return np.degrees(self.band_angles)
+
+
+def _result(c: np.ndarray, normals: list[np.ndarray], ratios: list[float]) -> Localization:
+    """Deduplicate (n ~ -n), sort by ratio and attach slip directions."""
+    order = np.argsort(ratios, kind="stable")
+    keep_n: list[np.ndarray] = []
+    keep_r: list[float] = []
+    for k in order:
+        n = _canonical(normals[k] / np.linalg.norm(normals[k]))
+        if any(abs(abs(float(n @ q)) - 1.0) < 1.0e-12 or np.linalg.norm(n - q) < 1e-7 for q in keep_n):
+            continue
+        keep_n.append(n)
+        keep_r.append(float(ratios[k]))
+    nn = np.array(keep_n)
+    return Localization(nn, np.array(keep_r), np.array([slip_direction(c, n) for n in nn]))
+
+
+def localization_plane_strain(c: np.ndarray, ce: np.ndarray, n_sweep: int = N_SWEEP) -> Localization:
+    """Minima of det A / det A^e over in-plane normals (cos t, sin t, 0): sweep, then bisection.
+
+    c, ce: (6, 6) Voigt tangent and elastic moduli [Pa]. All local minima are returned (the two
+    conjugate bands of a plane-strain state), lowest first; angles to ~1e-12 rad.
+    """
+    c = np.ascontiguousarray(c, dtype=float)
+    ce = np.ascontiguousarray(ce, dtype=float)
+    th = np.empty(n_sweep)
+    rr = np.empty(n_sweep)
+    k = _plane_strain_minima(c, ce, n_sweep, th, rr)
+    if k == 0:  # flat (e.g. elastic): report theta = 0
+        th[0], rr[0], k = 0.0, _ratio(c, ce, np.array([1.0, 0.0, 0.0])), 1
+    normals = [np.array([math.cos(t), math.sin(t), 0.0]) for t in th[:k]]
+    return _result(c, normals, list(rr[:k]))
+
+
+def localization_3d(c: np.ndarray, ce: np.ndarray, n_polar: int = N_POLAR, n_azimuth: int = N_AZIMUTH,
+                    max_candidates: int = 16) -> Localization:
+    """Minima of det A / det A^e over unit normals: sphere sweep, then Newton refinement of each."""
+    c = np.ascontiguousarray(c, dtype=float)
+    ce = np.ascontiguousarray(ce, dtype=float)
+    cand = _sphere_candidates(c, ce, n_polar, n_azimuth, max_candidates)
+    normals = [_refine_sphere(c, ce, n) for n in cand]
+    ratios = [float(_ratio(c, ce, n)) for n in normals]
+    return _result(c, normals, ratios)
+
+
+# --------------------------------------------------------------------------------------------
+# Drucker-Prager: eq. (8) at a stress, and the closed forms used as test oracles
+# --------------------------------------------------------------------------------------------
+
+
+def perfectly_plastic_tangent_at(law: DruckerPrager, sigma: np.ndarray) -> np.ndarray:
+    """Eq. (8) c_ep (6, 6) [Pa] with f, g of the Drucker-Prager law at the stress sigma (6,) [Pa]."""
+    p = law.as_array()
+    sigma = np.ascontiguousarray(sigma, dtype=float)
+    return dp.perfectly_plastic_tangent(law.elastic_matrix(), dp.yield_gradient(sigma, p),
+                                        dp.potential_gradient(sigma, p))
+
+
+def localization_at(law: DruckerPrager, sigma: np.ndarray, plane_strain: bool = True) -> Localization:
+    """Localization analysis of eq. (7)-(8) at the stress sigma (6,) [Pa] (on the cone, s != 0)."""
+    c = perfectly_plastic_tangent_at(law, sigma)
+    ce = law.elastic_matrix()
+    return localization_plane_strain(c, ce) if plane_strain else localization_3d(c, ce)
+
+
+def _tensor(sigma: np.ndarray) -> np.ndarray:
+    s = np.asarray(sigma, dtype=float)
+    return np.array([[s[0], s[3], s[5]], [s[3], s[1], s[4]], [s[5], s[4], s[2]]])
+
+
+def runesson_angle(sigma: np.ndarray, beta: float, b: float, nu: float) -> float:
+    """Plane-strain critical angle theta0 [rad] of Runesson, Ottosen & Peric (1991) for DP.
+
+    Angle between the band normal and the most compressive in-plane principal direction;
+    sigma (6,) [Pa] with sigma_yz = sigma_xz = 0. With the in-plane deviatoric principal stresses
+    s1 >= s2, s3 = s_zz and a = sqrt(2)(beta + b)/3: c1 = s2 + nu s3 + (1 + nu) a |s| / 2,
+    c2 = s1 + nu s3 + (1 + nu) a |s| / 2, tan^2 theta0 = -c2/c1 if c1 < 0 < c2; otherwise the
+    critical normal is a principal direction (0 if c2 <= 0, pi/2 if c1 >= 0).
+    """
+    s = np.asarray(sigma, dtype=float)
+    pm = (s[0] + s[1] + s[2]) / 3.0
+    sd = np.array([s[0] - pm, s[1] - pm, s[2] - pm, s[3], s[4], s[5]])
+    sn = math.sqrt(sd[0] ** 2 + sd[1] ** 2 + sd[2] ** 2 + 2.0 * (sd[3] ** 2 + sd[4] ** 2 + sd[5] ** 2))
+    w = np.linalg.eigvalsh(np.array([[sd[0], sd[3]], [sd[3], sd[1]]]))
+    s2, s1, s3 = w[0], w[1], sd[2]
+    a = math.sqrt(2.0) * (beta + b) / 3.0
+    c1 = s2 + nu * s3 + 0.5 * (1.0 + nu) * a * sn
+    c2 = s1 + nu * s3 + 0.5 * (1.0 + nu) * a * sn
+    if c1 < 0.0 < c2:
+        return math.atan(math.sqrt(-c2 / c1))
+    return 0.0 if c2 <= 0.0 else 0.5 * math.pi
+
+
+def runesson_normals(sigma: np.ndarray, beta: float, b: float, nu: float) -> np.ndarray:
+    """The two conjugate plane-strain normals (2, 3) at +-theta0 from the most compressive direction."""
+    s = np.asarray(sigma, dtype=float)
+    w, v = np.linalg.eigh(np.array([[s[0], s[3]], [s[3], s[1]]]))
+    d = v[:, 0]  # most compressive in-plane direction
+    t0 = runesson_angle(s, beta, b, nu)
+    out = []
+    for sg in (1.0, -1.0):
+        ct, st = math.cos(sg * t0), math.sin(sg * t0)
+        out.append(_canonical(np.array([ct * d[0] - st * d[1], st * d[0] + ct * d[1], 0.0])))
+    return np.array(out)
+
+
+def rudnicki_rice_angle(sigma: np.ndarray, beta: float, b: float, nu: float) -> float:
+    """3D critical angle theta0 = pi/4 + asin(alpha)/2 [rad] of Rudnicki & Rice (1975) for DP.
+
+    Angle between the band normal and the most compressive principal axis; the normal lies in the
+    plane of the most and least compressive axes. alpha = [(2/3)(1 + nu)(beta + b) - N (1 - 2 nu)]
+    / sqrt(4 - 3 N^2), N = s_II / sqrt(J2) (s_II the intermediate deviatoric principal stress);
+    |alpha| > 1 is clipped (the normal is then a principal direction).
+    """
+    w = np.linalg.eigvalsh(_tensor(sigma))
+    sd = w - w.mean()
+    j2 = 0.5 * float(sd @ sd)
+    nn = sd[1] / math.sqrt(j2)
+    alpha = ((2.0 / 3.0) * (1.0 + nu) * (beta + b) - nn * (1.0 - 2.0 * nu)) / math.sqrt(4.0 - 3.0 * nn * nn)
+    return 0.25 * math.pi + 0.5 * math.asin(min(1.0, max(-1.0, alpha)))
+
+
+def peak_cohesion(sigma: np.ndarray, n: np.ndarray, tan_phi: float) -> float:
+    """Eq. (28) for a homogeneous stress: c_p = |T_t| + T_n* tan(phi) [Pa] on the plane of normal n.
+
+    T = sigma n, T_n = n . T, |T_t| = |T - T_n n|, T_n* = min(T_n, 0).
+    """
+    n = np.asarray(n, dtype=float) / np.linalg.norm(n)
+    t = _tensor(sigma) @ n
+    tn = float(t @ n)
+    return float(np.linalg.norm(t - tn * n)) + min(tn, 0.0) * tan_phi

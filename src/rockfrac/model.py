@@ -24,7 +24,7 @@ class Assembled:
 
 @dataclass
 class Model:
-    """Groups on a shared dof numbering: 2 per node, then the groups' extra dofs.
+    """Groups on a shared dof numbering: dim per node, then the groups' extra dofs.
 
     dirichlet: prescribed dof indices; the values come from the load path.
     """
@@ -32,13 +32,14 @@ class Model:
     n_nodes: int
     groups: list
     dirichlet: np.ndarray
+    dim: int = 2
     n_dofs: int = 0
     pattern: Pattern | None = None
     _const_data: np.ndarray | None = field(default=None, repr=False)
     _const_matrix: sp.csr_matrix | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
-        n = 2 * self.n_nodes
+        n = self.dim * self.n_nodes
         for g in self.groups:
             if g.n_extra:
                 g.set_offset(n)

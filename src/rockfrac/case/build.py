@@ -8,7 +8,8 @@ import numpy as np
 
 from rockfrac.case.schema import Case, CaseError, CohesiveForm, Control
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
-from rockfrac.elements.solid import ElasticQ4
+from rockfrac.elements.solid import ElasticSolid
+from rockfrac.fem.reference import ELEMENTS
 from rockfrac.elements.interface_points import interface_points
 from rockfrac.fem.conditions import edge_pressure
 from rockfrac.laws.cohesive_params import CohesiveLaw
@@ -26,7 +27,7 @@ class Built:
     model: Model
     stages: list[Stage]
     top_y_dofs: np.ndarray  # prescribed axial dofs (reaction -> F_axial)
-    bulk: ElasticQ4
+    bulk: ElasticSolid
     cohesive: CohesiveEP | CohesiveRP | None
 
 
@@ -39,7 +40,7 @@ def default_augmentation(case: Case, mesh: Mesh) -> float:
 
     The converged solution does not depend on r; it only shapes the iterations.
     """
-    x = mesh.nodes[mesh.quads]
+    x = mesh.nodes[mesh.cells]
     area = 0.5 * np.abs(
         np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, 1) - np.roll(x[:, :, 0], -1, 1) * x[:, :, 1], 1)
     )
@@ -86,7 +87,7 @@ def build(case: Case, path: str = "<case>") -> Built:
     """Model of the specimen: bulk Q4s, the crack's CSE group, BCs of PAPER_NOTES Sect. 7."""
     case = resolve(case)
     mesh = make_mesh(case, path)
-    bulk = ElasticQ4(mesh.nodes, mesh.quads, case.bulk.E, case.bulk.nu)
+    bulk = ElasticSolid(mesh.nodes, mesh.cells, ELEMENTS[mesh.cell_type], case.bulk.E, case.bulk.nu)
     groups: list = [bulk]
     cohesive = None
     if case.cohesive is not None:

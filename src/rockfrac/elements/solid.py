@@ -1,4 +1,4 @@
-"""Bulk solid element groups."""
+"""Bulk solid element groups (Q4 plane strain or Hex8), on precomputed shape gradients."""
 
 from __future__ import annotations
 
@@ -6,8 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rockfrac.fem import quad4
 from rockfrac.fem.dofs import node_dofs
+from rockfrac.fem.kinematics import element_gradients, elastic_blocks, strains
+from rockfrac.fem.reference import ReferenceElement
+from rockfrac.laws.elastic import elasticity, isotropic_elasticity
 
 
 @dataclass
@@ -21,32 +23,41 @@ class Evaluation:
     message: str = ""
 
 
-class ElasticQ4:
-    """Linear elastic plane-strain Q4 bulk; its stiffness is constant and assembled once."""
+class SolidGeometry:
+    """Cells of one reference type: dofs, physical gradients (n_el, n_qp, n_nodes, dim), det J w."""
+
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement):
+        self.ref = ref
+        self.dim = ref.dim
+        self.cells = cells
+        self.grads, self.wdet = element_gradients(nodes[cells], ref)
+        bad = np.flatnonzero((self.wdet <= 0.0).any(axis=1))
+        if bad.size:
+            raise ValueError(f"inverted or degenerate {ref.name} cells {bad[:5].tolist()} (det J <= 0)")
+        self.dofs = node_dofs(cells, self.dim)
+
+    def strains(self, u: np.ndarray) -> np.ndarray:
+        """Full Voigt strains (n_el, n_qp, 6) at the Gauss points."""
+        return strains(self.grads, np.ascontiguousarray(u[self.dofs]))
+
+
+class ElasticSolid(SolidGeometry):
+    """Linear elastic bulk (plane strain in 2D); its stiffness is constant and assembled once."""
 
     constant = True
     n_extra = 0
 
-    def __init__(self, nodes: np.ndarray, quads: np.ndarray, E: float, nu: float):
-        self.x = np.ascontiguousarray(nodes[quads])
-        self.quads = quads
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, E: float, nu: float):
+        super().__init__(nodes, cells, ref)
         self.E, self.nu = E, nu
-        self.d = quad4.plane_strain_elasticity(E, nu)
-        self.dofs = node_dofs(quads)
-        self.ke = quad4.elastic_stiffness(self.x, self.d, quad4.DN_REF)
-        if not np.all(np.isfinite(self.ke)):
-            raise ValueError("inverted or degenerate quadrilateral in the bulk mesh")
+        self.d = elasticity(E, nu, self.dim)
+        self.ke = elastic_blocks(self.grads, self.wdet, self.d)
 
     def stresses(self, u: np.ndarray) -> np.ndarray:
-        """Gauss-point stresses (n_el, 4, 4) as (xx, yy, zz, xy) [Pa], plane strain."""
-        eps = quad4.gauss_strains(self.x, u[self.dofs], quad4.DN_REF)
-        s = eps @ self.d.T
-        szz = self.nu * (s[..., 0] + s[..., 1])
-        return np.stack([s[..., 0], s[..., 1], szz, s[..., 2]], axis=-1)
+        """Gauss-point stresses (n_el, n_qp, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz)."""
+        return self.strains(u) @ isotropic_elasticity(self.E, self.nu).T
 
     # constant groups have nothing to commit
     def begin_step(self) -> None: ...
 
     def commit(self) -> None: ...
-
-

@@ -1,4 +1,4 @@
-"""The Mesh container: nodes, bulk quads, interface cells and named boundary groups."""
+"""The Mesh container: nodes, bulk cells of one type, interface cells and named groups."""
 
 from __future__ import annotations
 
@@ -6,54 +6,81 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rockfrac.fem.kinematics import element_gradients
+from rockfrac.fem.reference import ELEMENTS
+
 
 @dataclass
 class Mesh:
-    """A 2D mesh; nothing here assumes structure.
+    """A 2D or 3D mesh; nothing here assumes structure.
 
-    nodes: (n_nodes, 2) coordinates [m].
-    quads: (n_quads, 4) counter-clockwise node indices of bilinear quadrilaterals.
-    interfaces: (n_if, 4) zero-thickness interface cells, ordered (m0, m1, p0, p1): minus-side
+    nodes: (n_nodes, dim) coordinates [m].
+    cells: (n_cells, n) node indices of the bulk cells, of type ``cell_type`` ("quad4" counter-
+        clockwise, or "hex8" in VTK order: bottom face counter-clockwise seen from above, then top).
+    interfaces: (n_if, 4) zero-thickness 2D interface cells, ordered (m0, m1, p0, p1): minus-side
         nodes m0 -> m1 along the tangent t, and the plus-side nodes p0, p1 facing them. The normal
         n points from the minus to the plus side with (t, n) right-handed.
     node_sets: named node index arrays (Dirichlet conditions, reactions).
-    edge_sets: named (k, 2) node-pair arrays of boundary edges (pressure loads).
+    edge_sets: named (k, 2) node-pair arrays of 2D boundary edges, counter-clockwise (pressure loads).
+    face_sets: named (k, 4) node arrays of 3D boundary quadrilaterals, outward normal by the
+        right-hand rule (pressure loads).
+    regions: named cell index arrays (materials); by default one region "bulk" with every cell.
     """
 
     nodes: np.ndarray
-    quads: np.ndarray
+    cells: np.ndarray
+    cell_type: str = "quad4"
     interfaces: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), dtype=np.int64))
     node_sets: dict[str, np.ndarray] = field(default_factory=dict)
     edge_sets: dict[str, np.ndarray] = field(default_factory=dict)
+    face_sets: dict[str, np.ndarray] = field(default_factory=dict)
+    regions: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
-        self.quads = np.ascontiguousarray(self.quads, dtype=np.int64)
+        self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
         self.interfaces = np.ascontiguousarray(self.interfaces, dtype=np.int64).reshape(-1, 4)
+        if not self.regions:
+            self.regions = {"bulk": np.arange(self.cells.shape[0])}
+
+    @property
+    def dim(self) -> int:
+        return self.nodes.shape[1]
 
     @property
     def n_nodes(self) -> int:
         return self.nodes.shape[0]
 
+    @property
+    def quads(self) -> np.ndarray:
+        """The bulk cells of a quadrilateral mesh."""
+        if self.cell_type != "quad4":
+            raise AttributeError(f"a {self.cell_type} mesh has no quads")
+        return self.cells
+
     def check(self) -> list[str]:
         """Return a list of problems (empty if the mesh is consistent)."""
         problems: list[str] = []
         n = self.n_nodes
-        for name, cells in (("quads", self.quads), ("interfaces", self.interfaces)):
+        if self.cell_type not in ELEMENTS:
+            return [f"unknown cell type {self.cell_type!r}; known: {sorted(ELEMENTS)}"]
+        ref = ELEMENTS[self.cell_type]
+        if self.dim != ref.dim or self.cells.shape[1] != ref.n_nodes:
+            return [f"{self.cell_type} cells need {ref.n_nodes} nodes in {ref.dim}D, got "
+                    f"{self.cells.shape[1]} nodes in {self.dim}D"]
+        for name, cells in (("cells", self.cells), ("interfaces", self.interfaces)):
             if cells.size and (cells.min() < 0 or cells.max() >= n):
                 problems.append(f"{name} reference nodes outside 0..{n - 1}")
-        if self.quads.size:
-            x = self.nodes[self.quads]  # (e, 4, 2)
-            # signed area by the shoelace formula; must be positive (counter-clockwise)
-            area = 0.5 * np.sum(
-                x[:, :, 0] * np.roll(x[:, :, 1], -1, axis=1)
-                - np.roll(x[:, :, 0], -1, axis=1) * x[:, :, 1],
-                axis=1,
-            )
-            bad = np.flatnonzero(area <= 0.0)
+        if problems:
+            return problems
+        if self.cells.size:
+            _, wdet = element_gradients(self.nodes[self.cells], ref)
+            bad = np.flatnonzero((wdet <= 0.0).any(axis=1))
             if bad.size:
-                problems.append(f"quads {bad[:5].tolist()} are inverted or degenerate")
+                problems.append(f"cells {bad[:5].tolist()} are inverted or degenerate (det J <= 0)")
         if self.interfaces.size:
+            if self.dim != 2:
+                problems.append("interface cells are 2D only")
             xm = self.nodes[self.interfaces[:, :2]]
             xp = self.nodes[self.interfaces[:, 2:]]
             lengths = np.linalg.norm(xm[:, 1] - xm[:, 0], axis=1)
@@ -62,7 +89,9 @@ class Mesh:
             gap = np.abs(xp - xm).max(initial=0.0)
             if gap > 1e-9 * max(1.0, np.abs(self.nodes).max()):
                 problems.append("interface node pairs do not coincide in the reference configuration")
-        for name, ids in self.node_sets.items():
-            if ids.size and (ids.min() < 0 or ids.max() >= n):
-                problems.append(f"node set {name!r} references nodes outside 0..{n - 1}")
+        for kind, sets in (("node set", self.node_sets), ("region", self.regions)):
+            limit = n if kind == "node set" else self.cells.shape[0]
+            for name, ids in sets.items():
+                if ids.size and (ids.min() < 0 or ids.max() >= limit):
+                    problems.append(f"{kind} {name!r} references entries outside 0..{limit - 1}")
         return problems

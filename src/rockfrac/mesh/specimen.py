@@ -1,4 +1,5 @@
-"""The plane-strain specimen of the paper: a W x H block cut by a straight crack through its centre."""
+"""The paper's specimen (Sect. 7, PAPER_NOTES): a W x H plane-strain block, in 2D cut by a straight
+crack through its centre, or in 3D a block of hexahedra of some thickness (the EDE case)."""
 
 from __future__ import annotations
 
@@ -73,7 +74,8 @@ def cracked_specimen(
         quads = new_index[remap[quads]]
         nodes = nodes[keep]
         interfaces = np.zeros((0, 4), dtype=np.int64)
-    return Mesh(nodes=nodes, quads=quads, interfaces=interfaces, **_boundary_groups(nodes, quads, width, height))
+    return Mesh(nodes=nodes, cells=quads, cell_type="quad4", interfaces=interfaces,
+                **_boundary_groups(nodes, quads, width, height))
 
 
 def _boundary_groups(nodes: np.ndarray, quads: np.ndarray, width: float, height: float) -> dict:
@@ -91,3 +93,32 @@ def _boundary_groups(nodes: np.ndarray, quads: np.ndarray, width: float, height:
     edges = np.stack([quads, np.roll(quads, -1, axis=1)], axis=-1).reshape(-1, 2)
     edge_sets = {name: edges[mask[edges].all(axis=1)] for name, mask in sides.items()}
     return {"node_sets": node_sets, "edge_sets": edge_sets}
+
+
+def hex_specimen(width: float = 0.04, height: float = 0.08, thickness: float = 0.08,
+                 nx: int = 1, ny: int = 1, nz: int = 1) -> Mesh:
+    """W x H x T block of nx x ny x nz trilinear hexahedra (x across, y up, z out of plane).
+
+    Node sets: bottom, top, left, right, back (z = 0), front (z = T), bottom_left (the line
+    y = 0, x = 0); face sets left, right (outward normals -x, +x) for the confining pressure.
+    """
+    xs, ys, zs = (np.linspace(0.0, L, n + 1) for L, n in ((width, nx), (height, ny), (thickness, nz)))
+    z, y, x = np.meshgrid(zs, ys, xs, indexing="ij")
+    nodes = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    ids = np.arange(nodes.shape[0]).reshape(nz + 1, ny + 1, nx + 1)
+    c = ids[:-1, :-1, :-1], ids[:-1, :-1, 1:], ids[:-1, 1:, 1:], ids[:-1, 1:, :-1]
+    top = tuple(ids[1:, j0, i0] for j0, i0 in ((slice(None, -1), slice(None, -1)), (slice(None, -1), slice(1, None)),
+                                                (slice(1, None), slice(1, None)), (slice(1, None), slice(None, -1))))
+    # VTK hexahedron: (x, y) counter-clockwise at z, then the same above; here "up" is +z
+    cells = np.stack([*c, *top], axis=-1).reshape(-1, 8)
+    tol = 1e-9 * max(width, height, thickness)
+    X, Y, Z = nodes.T
+    sides = {"bottom": np.abs(Y) < tol, "top": np.abs(Y - height) < tol, "left": np.abs(X) < tol,
+             "right": np.abs(X - width) < tol, "back": np.abs(Z) < tol, "front": np.abs(Z - thickness) < tol}
+    node_sets = {k: np.flatnonzero(v) for k, v in sides.items()}
+    node_sets["bottom_left"] = np.flatnonzero(sides["bottom"] & sides["left"])
+    # faces at x = 0 and x = W, ordered so that (x1 - x0) x (x3 - x0) points outward
+    left = np.stack([ids[:-1, :-1, 0], ids[1:, :-1, 0], ids[1:, 1:, 0], ids[:-1, 1:, 0]], axis=-1).reshape(-1, 4)
+    right = np.stack([ids[:-1, :-1, -1], ids[:-1, 1:, -1], ids[1:, 1:, -1], ids[1:, :-1, -1]], axis=-1).reshape(-1, 4)
+    return Mesh(nodes=nodes, cells=cells, cell_type="hex8", node_sets=node_sets,
+                face_sets={"left": left, "right": right})

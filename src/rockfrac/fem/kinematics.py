@@ -1,0 +1,154 @@
+"""Small-strain kinematics of isoparametric solids: physical gradients, Voigt strains, B^T s, B^T C B.
+
+Voigt order of the full strain/stress 6-vectors: (xx, yy, zz, xy, yz, xz), engineering shear
+strains (gamma_xy = 2 eps_xy). A 2D (plane-strain) element works on the reduced components
+(xx, yy, xy), i.e. VOIGT_2D of the 6-vector; eps_zz = eps_yz = eps_xz = 0.
+Element dofs are ordered node by node: (u_0x, u_0y[, u_0z], u_1x, ...).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from rockfrac.fem.reference import ReferenceElement
+
+VOIGT_2D = np.array([0, 1, 3])  # positions of (xx, yy, xy) in the 6-vector
+VOIGT_3D = np.arange(6)
+
+
+def voigt_index(dim: int) -> np.ndarray:
+    """Positions of the element's strain components in the full Voigt 6-vector."""
+    return VOIGT_2D if dim == 2 else VOIGT_3D
+
+
+@nb.njit(cache=True, parallel=True)
+def gradients(x: np.ndarray, dn_ref: np.ndarray, w_ref: np.ndarray):
+    """Physical shape gradients (n_el, n_qp, n_nodes, dim) and det J * w (n_el, n_qp).
+
+    x: (n_el, n_nodes, dim) nodal coordinates [m]; dn_ref: (n_qp, n_nodes, dim) dN/dxi;
+    w_ref: (n_qp,) Gauss weights. A non-positive det J leaves its weight <= 0 (checked by the caller).
+    """
+    n_el, n_nodes, dim = x.shape
+    n_qp = dn_ref.shape[0]
+    grads = np.empty((n_el, n_qp, n_nodes, dim))
+    wdet = np.empty((n_el, n_qp))
+    for e in nb.prange(n_el):
+        jac = np.zeros((dim, dim))
+        inv = np.empty((dim, dim))
+        for q in range(n_qp):
+            for i in range(dim):  # J_ij = dx_j / dxi_i
+                for j in range(dim):
+                    s = 0.0
+                    for a in range(n_nodes):
+                        s += dn_ref[q, a, i] * x[e, a, j]
+                    jac[i, j] = s
+            if dim == 2:
+                det = jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]
+                inv[0, 0] = jac[1, 1] / det
+                inv[0, 1] = -jac[0, 1] / det
+                inv[1, 0] = -jac[1, 0] / det
+                inv[1, 1] = jac[0, 0] / det
+            else:
+                det = (jac[0, 0] * (jac[1, 1] * jac[2, 2] - jac[1, 2] * jac[2, 1])
+                       - jac[0, 1] * (jac[1, 0] * jac[2, 2] - jac[1, 2] * jac[2, 0])
+                       + jac[0, 2] * (jac[1, 0] * jac[2, 1] - jac[1, 1] * jac[2, 0]))
+                inv[0, 0] = (jac[1, 1] * jac[2, 2] - jac[1, 2] * jac[2, 1]) / det
+                inv[0, 1] = (jac[0, 2] * jac[2, 1] - jac[0, 1] * jac[2, 2]) / det
+                inv[0, 2] = (jac[0, 1] * jac[1, 2] - jac[0, 2] * jac[1, 1]) / det
+                inv[1, 0] = (jac[1, 2] * jac[2, 0] - jac[1, 0] * jac[2, 2]) / det
+                inv[1, 1] = (jac[0, 0] * jac[2, 2] - jac[0, 2] * jac[2, 0]) / det
+                inv[1, 2] = (jac[0, 2] * jac[1, 0] - jac[0, 0] * jac[1, 2]) / det
+                inv[2, 0] = (jac[1, 0] * jac[2, 1] - jac[1, 1] * jac[2, 0]) / det
+                inv[2, 1] = (jac[0, 1] * jac[2, 0] - jac[0, 0] * jac[2, 1]) / det
+                inv[2, 2] = (jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]) / det
+            wdet[e, q] = det * w_ref[q]
+            for a in range(n_nodes):  # dN/dx_j = (J^-1)_ji dN/dxi_i
+                for j in range(dim):
+                    s = 0.0
+                    for i in range(dim):
+                        s += inv[j, i] * dn_ref[q, a, i]
+                    grads[e, q, a, j] = s
+    return grads, wdet
+
+
+def element_gradients(x: np.ndarray, ref: ReferenceElement) -> tuple[np.ndarray, np.ndarray]:
+    """Gradients and weights of elements with nodes x (n_el, n_nodes, dim) on reference ``ref``."""
+    return gradients(np.ascontiguousarray(x, dtype=np.float64), ref.shape_gradients(ref.points), ref.weights)
+
+
+@nb.njit(cache=True, inline="always")
+def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
+    """Fill B (n_voigt, n_nodes * dim) from gradients g (n_nodes, dim): eps_reduced = B u_e.
+
+    Rows (xx, yy, xy) in 2D, (xx, yy, zz, xy, yz, xz) in 3D, engineering shear.
+    """
+    n_nodes, dim = g.shape
+    b[:, :] = 0.0
+    for a in range(n_nodes):
+        c = dim * a
+        if dim == 2:
+            b[0, c] = g[a, 0]
+            b[1, c + 1] = g[a, 1]
+            b[2, c] = g[a, 1]
+            b[2, c + 1] = g[a, 0]
+        else:
+            b[0, c] = g[a, 0]
+            b[1, c + 1] = g[a, 1]
+            b[2, c + 2] = g[a, 2]
+            b[3, c] = g[a, 1]
+            b[3, c + 1] = g[a, 0]
+            b[4, c + 1] = g[a, 2]
+            b[4, c + 2] = g[a, 1]
+            b[5, c] = g[a, 2]
+            b[5, c + 2] = g[a, 0]
+
+
+@nb.njit(cache=True, parallel=True)
+def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Element stiffness matrices (n_el, nd, nd) = sum_q w det J B^T D B [N/m, per unit thickness in 2D].
+
+    d: (n_voigt, n_voigt) elasticity in the element's Voigt components (3x3 plane strain, 6x6 3D).
+    """
+    n_el, n_qp, n_nodes, dim = grads.shape
+    nv = d.shape[0]
+    nd = n_nodes * dim
+    ke = np.zeros((n_el, nd, nd))
+    for e in nb.prange(n_el):
+        b = np.empty((nv, nd))
+        db = np.empty((nv, nd))
+        for q in range(n_qp):
+            b_matrix(grads[e, q], b)
+            w = wdet[e, q]
+            for i in range(nv):
+                for j in range(nd):
+                    s = 0.0
+                    for k in range(nv):
+                        s += d[i, k] * b[k, j]
+                    db[i, j] = s * w
+            for i in range(nd):
+                for j in range(nd):
+                    s = 0.0
+                    for k in range(nv):
+                        s += b[k, i] * db[k, j]
+                    ke[e, i, j] += s
+    return ke
+
+
+@nb.njit(cache=True, parallel=True)
+def strains(grads: np.ndarray, ue: np.ndarray) -> np.ndarray:
+    """Full Voigt strains (n_el, n_qp, 6) at the Gauss points from element dofs ue (n_el, nd)."""
+    n_el, n_qp, n_nodes, dim = grads.shape
+    nv = 3 if dim == 2 else 6
+    idx = np.array([0, 1, 3]) if dim == 2 else np.arange(6)
+    eps = np.zeros((n_el, n_qp, 6))
+    for e in nb.prange(n_el):
+        b = np.empty((nv, n_nodes * dim))
+        for q in range(n_qp):
+            b_matrix(grads[e, q], b)
+            for i in range(nv):
+                s = 0.0
+                for j in range(n_nodes * dim):
+                    s += b[i, j] * ue[e, j]
+                eps[e, q, idx[i]] = s
+    return eps

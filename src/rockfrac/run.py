@@ -43,7 +43,7 @@ def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
 
 def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
     top = built.top_y_dofs
-    reaction = info.f_int[top].sum()  # no external force acts on the prescribed dofs
+    reaction = info.f_int[top].sum() / built.thickness  # per unit thickness; no external force on top
     row = {
         "step": info.step,
         "stage": info.stage,

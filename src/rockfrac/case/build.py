@@ -6,14 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rockfrac.case.schema import Case, CaseError, CohesiveForm, Control
+from rockfrac.case.schema import BulkModel, Case, CaseError, CohesiveForm, Control, ElementType
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
-from rockfrac.elements.solid import ElasticSolid
-from rockfrac.fem.reference import ELEMENTS
 from rockfrac.elements.interface_points import interface_points
-from rockfrac.fem.conditions import edge_pressure
+from rockfrac.elements.plastic_solid import DruckerPragerSolid
+from rockfrac.elements.solid import ElasticSolid
+from rockfrac.fem.conditions import edge_pressure, face_pressure
+from rockfrac.fem.reference import ELEMENTS
 from rockfrac.laws.cohesive_params import CohesiveLaw
-from rockfrac.mesh import Mesh, cracked_specimen
+from rockfrac.laws.drucker_prager_params import DruckerPrager
+from rockfrac.mesh import Mesh, cracked_specimen, hex_specimen
 from rockfrac.model import Model
 from rockfrac.solve.stepping import PathSpec, Stage
 
@@ -27,7 +29,8 @@ class Built:
     model: Model
     stages: list[Stage]
     top_y_dofs: np.ndarray  # prescribed axial dofs (reaction -> F_axial)
-    bulk: ElasticSolid
+    thickness: float  # forces are reported per unit thickness: 1 in 2D, T for hex8 [m]
+    bulk: ElasticSolid | DruckerPragerSolid
     cohesive: CohesiveEP | CohesiveRP | None
 
 
@@ -49,7 +52,8 @@ def default_augmentation(case: Case, mesh: Mesh) -> float:
 
 
 def resolve(case: Case) -> Case:
-    """Fill the defaults that depend on the case (path-control sizes, RP augmentation)."""
+    """Fill every default, including those that depend on the case (path control, RP augmentation)."""
+    case = case.resolved()
     load = case.loading
     if load.control is Control.path:
         nominal = abs(load.axial_targets[0]) / load.axial_steps
@@ -66,9 +70,12 @@ def resolve(case: Case) -> Case:
 
 
 def make_mesh(case: Case, path: str = "<case>") -> Mesh:
-    m = case.mesh
+    m = case.mesh.resolved()
     try:
-        mesh = cracked_specimen(m.width, m.height, m.crack_angle, m.nx, m.ny, crack=m.crack)
+        if m.element is ElementType.hex8:
+            mesh = hex_specimen(m.width, m.height, m.thickness, m.nx, m.ny, m.nz)
+        else:
+            mesh = cracked_specimen(m.width, m.height, m.crack_angle or 0.0, m.nx, m.ny, crack=m.crack)
     except ValueError as err:
         raise CaseError(f"{path}: [mesh] crack_angle: {err}") from None
     problems = mesh.check()
@@ -83,11 +90,25 @@ def law_of_section(section) -> CohesiveLaw:
     return CohesiveLaw(**{k: getattr(section, k) for k in names if getattr(section, k, None) is not None})
 
 
+def drucker_prager_of(bulk) -> DruckerPrager:
+    """The Drucker-Prager parameters of a validated (resolved) [bulk] section."""
+    return DruckerPrager(bulk.E, bulk.nu, bulk.beta, bulk.b, bulk.kappa0, bulk.H or 0.0)
+
+
+def make_bulk(case: Case, mesh: Mesh):
+    """The bulk element group of the case's material."""
+    ref = ELEMENTS[mesh.cell_type]
+    if case.bulk.model is BulkModel.drucker_prager:
+        return DruckerPragerSolid(mesh.nodes, mesh.cells, ref, drucker_prager_of(case.bulk))
+    return ElasticSolid(mesh.nodes, mesh.cells, ref, case.bulk.E, case.bulk.nu)
+
+
 def build(case: Case, path: str = "<case>") -> Built:
-    """Model of the specimen: bulk Q4s, the crack's CSE group, BCs of PAPER_NOTES Sect. 7."""
+    """Model of the specimen: bulk, the crack's CSE group, BCs of PAPER_NOTES Sect. 7."""
     case = resolve(case)
     mesh = make_mesh(case, path)
-    bulk = ElasticSolid(mesh.nodes, mesh.cells, ELEMENTS[mesh.cell_type], case.bulk.E, case.bulk.nu)
+    dim = mesh.dim
+    bulk = make_bulk(case, mesh)
     groups: list = [bulk]
     cohesive = None
     if case.cohesive is not None:
@@ -98,20 +119,26 @@ def build(case: Case, path: str = "<case>") -> Built:
         else:
             cohesive = CohesiveRP(points, law, case.cohesive.augmentation)
         groups.append(cohesive)
-    bottom, top = mesh.node_sets["bottom"], mesh.node_sets["top"]
-    corner = mesh.node_sets["bottom_left"]
-    top_y = 2 * top + 1
-    dirichlet = np.concatenate([2 * bottom + 1, 2 * corner, top_y])
-    model = Model(mesh.n_nodes, groups, dirichlet)
+    sets = mesh.node_sets
+    top_y = dim * sets["top"] + 1
+    held = [dim * sets["bottom"] + 1, dim * sets["bottom_left"], top_y]
+    if dim == 3:  # plane strain: both out-of-plane faces held in their normal direction
+        held += [3 * sets["back"] + 2, 3 * sets["front"] + 2]
+    dirichlet = np.unique(np.concatenate(held))
+    model = Model(mesh.n_nodes, groups, dirichlet, dim=dim)
     stages = _stages(case, mesh, model, top_y, cohesive)
-    return Built(case, mesh, model, stages, top_y, bulk, cohesive)
+    thickness = case.mesh.resolved().thickness if dim == 3 else 1.0
+    return Built(case, mesh, model, stages, top_y, thickness, bulk, cohesive)
 
 
 def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, cohesive) -> list[Stage]:
     load = case.loading
     f_conf = np.zeros(model.n_dofs)
     for side in ("left", "right"):
-        edge_pressure(mesh.nodes, mesh.edge_sets[side], load.confinement, f_conf)
+        if mesh.dim == 2:
+            edge_pressure(mesh.nodes, mesh.edge_sets[side], load.confinement, f_conf)
+        else:
+            face_pressure(mesh.nodes, mesh.face_sets[side], load.confinement, f_conf)
     n_d = model.dirichlet.shape[0]
     on_top = np.isin(model.dirichlet, top_y)
     stages = [Stage("confinement", load.confinement_steps, np.zeros(n_d), f_conf)]
@@ -123,6 +150,6 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, cohesive) -
 
 
 def _path(load, cohesive) -> PathSpec | None:
-    if load.control is not Control.path:
+    if load.control is not Control.path or cohesive is None:
         return None
     return PathSpec(cohesive.jump_measure, load.path_increment, cohesive.any_plastic, load.max_steps)

@@ -6,7 +6,7 @@ import math
 import tomllib
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -23,25 +23,127 @@ class MeshKind(str, Enum):
     specimen = "specimen"
 
 
+class ElementType(str, Enum):
+    quad4 = "quad4"
+    hex8 = "hex8"
+
+
 class MeshSection(_Section):
-    """The paper's specimen: W x H block, crack through the centre (PAPER_NOTES, Sect. 7)."""
+    """The paper's specimen (PAPER_NOTES, Sect. 7): a W x H block under plane strain.
+
+    element = "quad4": two blocks of nx x ny quads, cut by a crack through the centre at
+    crack_angle (or merged, crack = false). element = "hex8": one block of nx x ny x nz hexahedra
+    of thickness T with both out-of-plane faces held (plane strain), no crack (the EDE case).
+    """
 
     kind: MeshKind = MeshKind.specimen
+    element: ElementType = Field(ElementType.quad4, description="'quad4' (2D) or 'hex8' (3D, plane strain)")
     width: float = Field(0.04, gt=0, description="specimen width W [m]")
     height: float = Field(0.08, gt=0, description="specimen height H [m]")
-    crack: bool = Field(True, description="cut the specimen with a crack (False: uncracked block)")
-    crack_angle: float = Field(
-        math.radians(60.0), gt=-math.pi / 2, lt=math.pi / 2, description="crack angle from horizontal [rad]"
+    thickness: float | None = Field(None, gt=0, description="hex8 only: thickness T [m] (default 0.08)")
+    crack: bool | None = Field(None, description="quad4 only: cut the specimen with a crack (default true)")
+    crack_angle: float | None = Field(
+        None, gt=-math.pi / 2, lt=math.pi / 2, description="crack angle from horizontal [rad] (default 60 deg)"
     )
-    nx: int = Field(1, ge=1, description="elements across each block")
-    ny: int = Field(1, ge=1, description="element layers in each block")
+    nx: int = Field(1, ge=1, description="elements across (each block)")
+    ny: int = Field(1, ge=1, description="element layers (in each block for quad4)")
+    nz: int | None = Field(None, ge=1, description="hex8 only: elements through the thickness (default 1)")
+
+    @model_validator(mode="after")
+    def _per_element(self) -> MeshSection:
+        if self.element is ElementType.hex8:
+            if self.crack:
+                raise ValueError("element = 'hex8' cannot carry a cohesive crack (CSEs are 2D): use "
+                                 "element = 'quad4' or crack = false")
+            if self.crack_angle is not None:
+                raise ValueError("crack_angle only applies to element = 'quad4' with a crack")
+        else:
+            given = [k for k in ("thickness", "nz") if getattr(self, k) is not None]
+            if given:
+                raise ValueError(f"{', '.join(given)} only apply to element = 'hex8'")
+            if self.crack is False and self.crack_angle is not None:
+                raise ValueError("crack_angle is given but crack = false")
+        return self
+
+    def resolved(self) -> MeshSection:
+        """Every default filled in."""
+        if self.element is ElementType.hex8:
+            return self.model_copy(update={"thickness": self.thickness or 0.08, "nz": self.nz or 1, "crack": False})
+        crack = True if self.crack is None else self.crack
+        angle = (self.crack_angle if self.crack_angle is not None else math.radians(60.0)) if crack else None
+        return self.model_copy(update={"crack": crack, "crack_angle": angle})
+
+
+class BulkModel(str, Enum):
+    elastic = "elastic"
+    drucker_prager = "drucker_prager"
 
 
 class BulkSection(_Section):
-    """Linear isotropic elastic bulk (plane strain)."""
+    """Bulk: linear isotropic elasticity, or nonassociative Drucker-Prager with linear hardening.
 
+    F = sqrt(3/2)|s| + sqrt(3)(beta p - kappa0 - H gamma), G = sqrt(3/2)|s| + sqrt(3) b p,
+    p = tr(sigma)/3 tension positive (rockfrac.laws.drucker_prager).
+    """
+
+    model: BulkModel = Field(BulkModel.elastic, description="'elastic' or 'drucker_prager'")
     E: float = Field(gt=0, description="Young's modulus [Pa]")
     nu: float = Field(gt=-1.0, lt=0.5, description="Poisson's ratio")
+    beta: float | None = Field(None, ge=0, description="drucker_prager: friction coefficient of F [-]")
+    b: float | None = Field(None, ge=0, description="drucker_prager: dilatancy coefficient of G [-]")
+    kappa0: float | None = Field(None, ge=0, description="drucker_prager: initial strength kappa0 [Pa]")
+    H: float | None = Field(None, description="drucker_prager: hardening modulus [Pa] (default 0; < 0 softens)")
+
+    @model_validator(mode="after")
+    def _model_keys(self) -> BulkSection:
+        dp_keys = ("beta", "b", "kappa0", "H")
+        if self.model is BulkModel.elastic:
+            given = [k for k in dp_keys if getattr(self, k) is not None]
+            if given:
+                raise ValueError(f"{', '.join(given)} only apply to model = 'drucker_prager'")
+            return self
+        missing = [k for k in ("beta", "b", "kappa0") if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"model = 'drucker_prager' needs {', '.join(missing)}")
+        from rockfrac.laws.drucker_prager_params import DruckerPrager
+
+        DruckerPrager(self.E, self.nu, self.beta, self.b, self.kappa0, self.H or 0.0)  # admissible?
+        return self
+
+    def resolved(self) -> BulkSection:
+        if self.model is BulkModel.drucker_prager and self.H is None:
+            return self.model_copy(update={"H": 0.0})
+        return self
+
+
+class BandChoice(str, Enum):
+    positive = "positive"
+    negative = "negative"
+
+
+class EmbeddedSection(_Section):
+    """Embedded strong discontinuity (EDE, paper Sect. 4.1, 5): where det A = 0 is first reached, a
+    surface through the element centre with the Mohr-Coulomb law and exponential softening in gamma."""
+
+    c_p: float | Literal["eq28"] = Field(
+        "eq28", description="peak cohesion [Pa], or 'eq28': from the stress at bifurcation (paper eq. 28)")
+    c_r: float = Field(ge=0, description="residual cohesion [Pa]")
+    phi_p: float = Field(ge=0, lt=math.pi / 2, description="peak friction angle [rad]")
+    phi_r: float = Field(ge=0, lt=math.pi / 2, description="residual friction angle [rad]")
+    psi_p: float = Field(ge=0, lt=math.pi / 2, description="peak dilation angle [rad]")
+    alpha_c: float = Field(ge=0, description="softening rate of c [1/m]")
+    alpha_phi: float = Field(ge=0, description="softening rate of phi [1/m]")
+    alpha_psi: float = Field(ge=0, description="softening rate of psi [1/m]")
+    band: BandChoice = Field(BandChoice.positive, description="which conjugate band: 'positive' (band "
+                             "angle from horizontal in (0, 90) deg) or 'negative' ((-90, 0) deg)")
+
+    @model_validator(mode="after")
+    def _residual_below_peak(self) -> EmbeddedSection:
+        if self.phi_r > self.phi_p or (self.c_p != "eq28" and self.c_r > self.c_p):
+            raise ValueError("residual values (c_r, phi_r) must not exceed the peak ones")
+        if self.c_p != "eq28" and self.c_p <= 0:
+            raise ValueError("c_p must be > 0 or 'eq28'")
+        return self
 
 
 class CohesiveForm(str, Enum):
@@ -172,19 +274,29 @@ class Case(_Section):
     mesh: MeshSection = MeshSection()
     bulk: BulkSection
     cohesive: CohesiveSection | None = None
+    embedded: EmbeddedSection | None = None
     loading: LoadingSection
     solver: SolverSection = SolverSection()
     output: OutputSection = OutputSection()
 
     @model_validator(mode="after")
     def _crack_needs_law(self) -> Case:
-        if self.loading.control is Control.path and not self.mesh.crack:
-            raise ValueError("loading.control = 'path' follows the crack jump, but mesh.crack = false")
-        if self.mesh.crack and self.cohesive is None:
+        crack = self.mesh.resolved().crack
+        if self.loading.control is Control.path and not crack and self.embedded is None:
+            raise ValueError("loading.control = 'path' follows a crack jump, but there is no crack")
+        if crack and self.cohesive is None:
             raise ValueError("the mesh has a crack (mesh.crack = true) but there is no [cohesive] section")
-        if not self.mesh.crack and self.cohesive is not None:
+        if not crack and self.cohesive is not None:
             raise ValueError("[cohesive] is given but mesh.crack = false: there is no surface to put it on")
+        if self.embedded is not None and self.bulk.model is not BulkModel.drucker_prager:
+            raise ValueError("[embedded] needs [bulk] model = 'drucker_prager' (bifurcation of eq. 7-8)")
+        if self.embedded is not None and crack:
+            raise ValueError("[embedded] and a cohesive crack on the same specimen: set mesh.crack = false")
         return self
+
+    def resolved(self) -> Case:
+        """The mesh and bulk sections with every default filled in."""
+        return self.model_copy(update={"mesh": self.mesh.resolved(), "bulk": self.bulk.resolved()})
 
 
 def _location(loc: tuple[Any, ...]) -> str:
@@ -192,7 +304,7 @@ def _location(loc: tuple[Any, ...]) -> str:
     if not parts:
         return "(top level)"
     if len(parts) == 1:
-        return f"[{parts[0]}]" if parts[0] in ("mesh", "bulk", "cohesive", "loading", "solver", "output", "law") else parts[0]
+        return f"[{parts[0]}]" if parts[0] in ("mesh", "bulk", "cohesive", "embedded", "loading", "solver", "output", "law") else parts[0]
     return f"[{parts[0]}] {'.'.join(parts[1:])}"
 
 

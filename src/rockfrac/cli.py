@@ -116,6 +116,7 @@ def parser() -> argparse.ArgumentParser:
     pp.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
     pp.add_argument("--quiet", action="store_true")
     pp.set_defaults(func=_cmd_paper)
+    from rockfrac.bifurcation_cli import add_parser as _add_bif; _add_bif(sub)  # noqa: E702
     return p
 
 

@@ -20,6 +20,7 @@ class Assembled:
     ok: bool
     n_switched: int
     message: str = ""
+    local_residual: float = 0.0
 
 
 @dataclass
@@ -66,22 +67,34 @@ class Model:
         for g in self.groups:
             g.commit()
 
+    def event(self) -> tuple[float, float] | None:
+        """(committed, trial) values of the groups' event indicator (e.g. min det A / det A^e), or None.
+
+        An event happens in a step where the indicator crosses zero; the stepping then shortens the
+        step so that it ends at the event (within its tolerance).
+        """
+        pairs = [(g.last_event, g.event()) for g in self.groups if hasattr(g, "event")]
+        if not pairs:
+            return None
+        return min(p[0] for p in pairs), min(p[1] for p in pairs)
+
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
         """Residual and consistent tangent at u (trial state from the committed one at u_n)."""
         data = self._const_data.copy()
         f_int = self._const_matrix @ u
-        ok, switched, msgs = True, 0, []
+        ok, switched, msgs, local = True, 0, [], 0.0
         for g, slots in zip(self.groups, self.pattern.slots):
             if g.constant:
                 continue
             ev = g.evaluate(u, u_n)
             ok &= ev.ok
             switched += ev.n_switched
+            local = max(local, ev.local_residual)
             if ev.message:
                 msgs.append(ev.message)
             scatter_vector(f_int, g.dofs, ev.fe)
             scatter_matrix(data, slots, ev.ke)
-        return Assembled(f_int - f_ext, f_int, self.pattern.matrix(data), ok, switched, "; ".join(msgs))
+        return Assembled(f_int - f_ext, f_int, self.pattern.matrix(data), ok, switched, "; ".join(msgs), local)
 
     def apply_dirichlet(self, a: sp.csr_matrix) -> sp.csr_matrix:
         """Zero prescribed rows and columns, unit diagonal (the increment there is set by the rhs)."""

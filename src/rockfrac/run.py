@@ -30,7 +30,12 @@ class RunSummary:
 
 
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
-    """Per-point quantities of the cohesive surface, with the state named per form."""
+    """Per-point quantities of the discontinuity (CSE node pairs or localized EDE cells), state named."""
+    if built.embedded is not None:
+        rec = built.embedded.records()
+        rec["state"] = np.where(rec["mode"] == 1.0, "plastic", "constrained")
+        rec["point"] = np.arange(rec["cell"].shape[0])
+        return rec
     if built.cohesive is None:
         return None
     rec = built.cohesive.records(u)
@@ -54,10 +59,18 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
         "cutbacks": info.cutbacks,
         "control": info.controlled_by,
     }
-    if rec is not None:
+    if rec is not None and rec["state"].size:
         for k in ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi"):
-            row[k] = float(np.mean(rec[k]))
+            if k in rec:
+                row[k] = float(np.mean(rec[k]))
         row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
+    elif rec is not None:
+        row["n_plastic"] = 0
+    if built.embedded is not None:
+        row["det_ratio"] = built.embedded.last_event
+        row["n_localized"] = int(built.embedded.localized().size)
+    if hasattr(built.bulk, "plastic_fraction"):
+        row["bulk_plastic"] = built.bulk.plastic_fraction()
     return row
 
 
@@ -72,7 +85,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     resolved = resolve(case)
     (out / "case.toml").write_text(tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True)))
     history = CsvWriter(out / "history.csv", HISTORY_COLUMNS)
-    points = CsvWriter(out / "points.csv", POINT_COLUMNS) if case.output.points and built.cohesive else None
+    has_points = built.cohesive is not None or built.embedded is not None
+    points = CsvWriter(out / "points.csv", POINT_COLUMNS) if case.output.points and has_points else None
     log_fh = open(out / "run.log", "w")
 
     def log(msg: str) -> None:

@@ -8,6 +8,7 @@ import numpy as np
 
 from rockfrac.case.schema import BulkModel, Case, CaseError, CohesiveForm, Control, ElementType
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
+from rockfrac.elements.ede import EmbeddedDruckerPrager
 from rockfrac.elements.interface_points import interface_points
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid
@@ -15,6 +16,7 @@ from rockfrac.fem.conditions import edge_pressure, face_pressure
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.laws.cohesive_params import CohesiveLaw
 from rockfrac.laws.drucker_prager_params import DruckerPrager
+from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
 from rockfrac.mesh import Mesh, cracked_specimen, hex_specimen
 from rockfrac.model import Model
 from rockfrac.solve.stepping import PathSpec, Stage
@@ -30,8 +32,13 @@ class Built:
     stages: list[Stage]
     top_y_dofs: np.ndarray  # prescribed axial dofs (reaction -> F_axial)
     thickness: float  # forces are reported per unit thickness: 1 in 2D, T for hex8 [m]
-    bulk: ElasticSolid | DruckerPragerSolid
+    bulk: ElasticSolid | DruckerPragerSolid | EmbeddedDruckerPrager
     cohesive: CohesiveEP | CohesiveRP | None
+
+    @property
+    def embedded(self) -> EmbeddedDruckerPrager | None:
+        """The bulk group when it carries embedded discontinuities."""
+        return self.bulk if isinstance(self.bulk, EmbeddedDruckerPrager) else None
 
 
 AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
@@ -95,9 +102,20 @@ def drucker_prager_of(bulk) -> DruckerPrager:
     return DruckerPrager(bulk.E, bulk.nu, bulk.beta, bulk.b, bulk.kappa0, bulk.H or 0.0)
 
 
+def embedded_law(section) -> EmbeddedLaw:
+    """The Sect. 4.1 law of a validated [embedded] section (c_p None: eq. 28 per cell)."""
+    return EmbeddedLaw(c_r=section.c_r, phi_p=section.phi_p, phi_r=section.phi_r, psi_p=section.psi_p,
+                       alpha_c=section.alpha_c, alpha_phi=section.alpha_phi, alpha_psi=section.alpha_psi,
+                       c_p=None if section.c_p == "eq28" else float(section.c_p))
+
+
 def make_bulk(case: Case, mesh: Mesh):
     """The bulk element group of the case's material."""
     ref = ELEMENTS[mesh.cell_type]
+    if case.embedded is not None:  # plane strain: the specimen's hex is held on both faces
+        return EmbeddedDruckerPrager(mesh.nodes, mesh.cells, ref, drucker_prager_of(case.bulk),
+                                     embedded_law(case.embedded), band=case.embedded.band.value,
+                                     plane_strain=True)
     if case.bulk.model is BulkModel.drucker_prager:
         return DruckerPragerSolid(mesh.nodes, mesh.cells, ref, drucker_prager_of(case.bulk))
     return ElasticSolid(mesh.nodes, mesh.cells, ref, case.bulk.E, case.bulk.nu)

@@ -21,6 +21,7 @@ class Evaluation:
     ok: bool = True
     n_switched: int = 0
     message: str = ""
+    local_residual: float = 0.0  # relative residual of element-level equations (condensed unknowns)
 
 
 class SolidGeometry:

@@ -4,7 +4,8 @@
 (C maps strain-like to stress-like) ``A = N(n)^T C N(n)`` with ``N(n) a`` the strain-like Voigt
 vector of ``sym(a x n)``. The indicator is ``det A(n) / det A^e(n)`` (1 for an elastic tangent);
 localization when its minimum over unit normals is ``<= 0``. ``A(n) = A(-n)``, so plane-strain
-normals ``n = (cos t, sin t, 0)`` sweep ``t in [0, pi)`` and 3D normals a hemisphere.
+normals ``n = (cos t, sin t, 0)`` sweep ``t in [0, pi)``; the 3D search sweeps a (polar, azimuth) grid
+of the whole sphere (no special case at the hemisphere's rim) and merges ``n`` with ``-n``.
 
 Angles: the *normal angle* is that of ``n`` from the x axis (in the x-y plane), in ``[0, 180)``
 degrees; the *band angle* (the crack trace from horizontal) is the normal angle minus 90 degrees,
@@ -91,14 +92,18 @@ def _det_grad(c, n, grad):
     cof = np.empty((3, 3))
     _acoustic(c, n, a)
     det = _cofactor(a, cof)
-    e = np.zeros(3)
+    npe = np.empty(3)
+    nme = np.empty(3)
     em = np.empty((3, 3))
     ep = np.empty((3, 3))
     for m in range(3):
-        e[:] = 0.0
-        e[m] = 1.0
-        _acoustic(c, n + e, ep)  # A is quadratic in n: A(n + e) - A(n - e) = 2 dA/dn_m exactly
-        _acoustic(c, n - e, em)
+        for i in range(3):
+            npe[i] = n[i]
+            nme[i] = n[i]
+        npe[m] += 1.0
+        nme[m] -= 1.0
+        _acoustic(c, npe, ep)  # A is quadratic in n: A(n + e_m) - A(n - e_m) = 2 dA/dn_m exactly
+        _acoustic(c, nme, em)
         acc = 0.0
         for i in range(3):
             for k in range(3):
@@ -194,59 +199,82 @@ def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
 
 
 @nb.njit(cache=True)
-def _chart(n):
-    """Two unit vectors e1, e2 completing n to an orthonormal basis."""
+def _dot3(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@nb.njit(cache=True)
+def _chart(n, e1, e2):
+    """Fill e1, e2 (3,) so that (n, e1, e2) is orthonormal (n a unit vector)."""
     k = 0
     for j in range(1, 3):
         if abs(n[j]) < abs(n[k]):
             k = j
-    a = np.zeros(3)
-    a[k] = 1.0
-    e1 = a - (a @ n) * n
-    e1 /= math.sqrt(e1 @ e1)
-    e2 = np.array([n[1] * e1[2] - n[2] * e1[1], n[2] * e1[0] - n[0] * e1[2], n[0] * e1[1] - n[1] * e1[0]])
-    return e1, e2
+    for i in range(3):
+        e1[i] = -n[k] * n[i]
+    e1[k] += 1.0
+    ln = math.sqrt(_dot3(e1, e1))
+    for i in range(3):
+        e1[i] /= ln
+    e2[0] = n[1] * e1[2] - n[2] * e1[1]
+    e2[1] = n[2] * e1[0] - n[0] * e1[2]
+    e2[2] = n[0] * e1[1] - n[1] * e1[0]
+
+
+@nb.njit(cache=True)
+def _chart_point(n, e1, e2, u, v, m):
+    """m = (n + u e1 + v e2) / |.|; returns the length before normalization."""
+    for i in range(3):
+        m[i] = n[i] + u * e1[i] + v * e2[i]
+    lm = math.sqrt(_dot3(m, m))
+    for i in range(3):
+        m[i] /= lm
+    return lm
 
 
 @nb.njit(cache=True)
 def _chart_grad(c, ce, n, e1, e2, u, v, out):
     """r and (dr/du, dr/dv) at m = n + u e1 + v e2 normalized."""
-    m = n + u * e1 + v * e2
-    lm = math.sqrt(m @ m)
-    m = m / lm
+    m = np.empty(3)
     g = np.empty(3)
+    lm = _chart_point(n, e1, e2, u, v, m)
     r = _ratio_grad(c, ce, m, g)
-    gp = (g - (g @ m) * m) / lm
-    out[0] = gp @ e1
-    out[1] = gp @ e2
+    gm = _dot3(g, m)
+    for i in range(3):
+        g[i] = (g[i] - gm * m[i]) / lm  # tangential part, through the normalization
+    out[0] = _dot3(g, e1)
+    out[1] = _dot3(g, e2)
     return r
 
 
 @nb.njit(cache=True)
 def _refine_sphere(c, ce, n0):
-    """Local minimum of r on the unit sphere from n0 (3,): damped Newton in a moving chart."""
-    n = n0 / math.sqrt(n0 @ n0)
-    g = np.empty(2)
-    gp = np.empty(2)
-    gm = np.empty(2)
+    """Local minimum of r on the unit sphere from n0 (3,): damped Newton in a moving chart.
+
+    Analytic gradient, Hessian by central differences of it (step 1e-5 rad), backtracking on r.
+    """
+    zero = np.zeros(3)
+    n = np.empty(3)
+    _chart_point(n0, zero, zero, 0.0, 0.0, n)  # normalize (e1 = e2 = 0 here)
+    e1, e2, m = np.empty(3), np.empty(3), np.empty(3)
+    g, gp, gm = np.empty(2), np.empty(2), np.empty(2)
     hs = 1.0e-5
     for _ in range(60):
-        e1, e2 = _chart(n)
+        _chart(n, e1, e2)
         r0 = _chart_grad(c, ce, n, e1, e2, 0.0, 0.0, g)
-        hm = np.empty((2, 2))
         _chart_grad(c, ce, n, e1, e2, hs, 0.0, gp)
         _chart_grad(c, ce, n, e1, e2, -hs, 0.0, gm)
-        hm[:, 0] = (gp - gm) / (2.0 * hs)
+        h00, h10 = (gp[0] - gm[0]) / (2.0 * hs), (gp[1] - gm[1]) / (2.0 * hs)
         _chart_grad(c, ce, n, e1, e2, 0.0, hs, gp)
         _chart_grad(c, ce, n, e1, e2, 0.0, -hs, gm)
-        hm[:, 1] = (gp - gm) / (2.0 * hs)
-        off = 0.5 * (hm[0, 1] + hm[1, 0])
-        det = hm[0, 0] * hm[1, 1] - off * off
-        if det > 0.0 and hm[0, 0] > 0.0:
-            du = -(hm[1, 1] * g[0] - off * g[1]) / det
-            dv = -(hm[0, 0] * g[1] - off * g[0]) / det
-        else:  # not convex here: steepest descent with a step of at most 0.05 rad
-            gn = math.sqrt(g @ g)
+        h01, h11 = (gp[0] - gm[0]) / (2.0 * hs), (gp[1] - gm[1]) / (2.0 * hs)
+        off = 0.5 * (h01 + h10)
+        det = h00 * h11 - off * off
+        if det > 0.0 and h00 > 0.0:
+            du = -(h11 * g[0] - off * g[1]) / det
+            dv = -(h00 * g[1] - off * g[0]) / det
+        else:  # not convex here: steepest descent, 0.05 rad
+            gn = math.sqrt(g[0] * g[0] + g[1] * g[1])
             if gn == 0.0:
                 break
             du, dv = -0.05 * g[0] / gn, -0.05 * g[1] / gn
@@ -256,63 +284,80 @@ def _refine_sphere(c, ce, n0):
             step = 0.1
         alpha = 1.0
         for _ls in range(30):
-            m = n + alpha * (du * e1 + dv * e2)
-            m = m / math.sqrt(m @ m)
+            _chart_point(n, e1, e2, alpha * du, alpha * dv, m)
             if _ratio(c, ce, m) <= r0 + 1.0e-15 * max(abs(r0), 1.0):
                 break
             alpha *= 0.5
-        n = m
+        for i in range(3):
+            n[i] = m[i]
         if alpha * step < 1.0e-13:
             break
     return n
 
 
 @nb.njit(cache=True)
-def _sphere_candidates(c, ce, n_polar, n_azimuth, max_candidates):
-    """Local minima of r on a (polar, azimuth) grid of the sphere (at most max_candidates, lowest)."""
+def _sphere_point(i, j, n_polar, n_azimuth, out):
+    """Grid normal: polar (i + 1/2) pi / n_polar, azimuth 2 pi j / n_azimuth."""
+    th = math.pi * (i + 0.5) / n_polar
+    ph = 2.0 * math.pi * j / n_azimuth
+    out[0] = math.sin(th) * math.cos(ph)
+    out[1] = math.sin(th) * math.sin(ph)
+    out[2] = math.cos(th)
+
+
+@nb.njit(cache=True)
+def _sphere_candidates(c, ce, n_polar, n_azimuth, cand):
+    """Local minima of r on a (polar, azimuth) grid of the sphere, the lowest cand.shape[0] of them.
+
+    Fills cand (k, 3) and returns how many; ties go to the lower flat index (symmetric grids tie).
+    """
     r = np.empty((n_polar, n_azimuth))
-    pts = np.empty((n_polar, n_azimuth, 3))
+    pt = np.empty(3)
     for i in range(n_polar):
-        th = math.pi * (i + 0.5) / n_polar
         for j in range(n_azimuth):
-            ph = 2.0 * math.pi * j / n_azimuth
-            pts[i, j, 0] = math.sin(th) * math.cos(ph)
-            pts[i, j, 1] = math.sin(th) * math.sin(ph)
-            pts[i, j, 2] = math.cos(th)
-            r[i, j] = _ratio(c, ce, pts[i, j])
-    cand = np.empty((max_candidates, 3))
-    cval = np.empty(max_candidates)
+            _sphere_point(i, j, n_polar, n_azimuth, pt)
+            r[i, j] = _ratio(c, ce, pt)
+    cval = np.empty(cand.shape[0])
     count = 0
+    best_i, best_j = 0, 0
     for i in range(n_polar):
         for j in range(n_azimuth):
+            if r[i, j] < r[best_i, best_j]:
+                best_i, best_j = i, j
             is_min = True
             for di in range(-1, 2):
+                ii = i + di
+                if ii < 0 or ii >= n_polar:
+                    continue
                 for dj in range(-1, 2):
+                    jj = (j + dj) % n_azimuth
                     if di == 0 and dj == 0:
                         continue
-                    ii = i + di
-                    if ii < 0 or ii >= n_polar:
-                        continue
-                    jj = (j + dj) % n_azimuth
-                    rn = r[ii, jj]  # ties go to the lower flat index (symmetric grids tie a lot)
+                    rn = r[ii, jj]
                     if rn < r[i, j] or (rn == r[i, j] and ii * n_azimuth + jj < i * n_azimuth + j):
                         is_min = False
             if not is_min:
                 continue
-            if count < max_candidates:
-                cand[count] = pts[i, j]
-                cval[count] = r[i, j]
+            slot = count
+            if count == cand.shape[0]:  # full: replace the worst kept one if this is lower
+                slot = 0
+                for k in range(1, count):
+                    if cval[k] > cval[slot]:
+                        slot = k
+                if not r[i, j] < cval[slot]:
+                    continue
+            else:
                 count += 1
-            else:  # keep the lowest max_candidates
-                worst = np.argmax(cval)
-                if r[i, j] < cval[worst]:
-                    cand[worst] = pts[i, j]
-                    cval[worst] = r[i, j]
-    if count == 0:
-        k = np.argmin(r)
-        cand[0] = pts.reshape(-1, 3)[k]
+            _sphere_point(i, j, n_polar, n_azimuth, pt)
+            for k in range(3):
+                cand[slot, k] = pt[k]
+            cval[slot] = r[i, j]
+    if count == 0:  # flat: the lowest grid point
+        _sphere_point(best_i, best_j, n_polar, n_azimuth, pt)
+        for k in range(3):
+            cand[0, k] = pt[k]
         count = 1
-    return cand[:count]
+    return count
 
 
 # --------------------------------------------------------------------------------------------
@@ -326,6 +371,12 @@ def _canonical(n: np.ndarray) -> np.ndarray:
         if abs(n[k]) > 1.0e-14:
             return n if n[k] > 0.0 else -n
     return n
+
+
+def _band_angle(n: np.ndarray) -> float:
+    """Band angle [rad] from the x axis of the plane of normal n: normal angle - pi/2, in (-pi/2, pi/2]."""
+    a = math.atan2(n[1], n[0]) % math.pi - 0.5 * math.pi
+    return a + math.pi if a <= -0.5 * math.pi else a
 
 
 def slip_direction(c: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -363,8 +414,7 @@ class Localization:
     @property
     def band_angles(self) -> np.ndarray:
         """Band (crack trace) angles from the x axis [rad], normal angle - pi/2 in (-pi/2, pi/2]."""
-        a = self.normal_angles - 0.5 * math.pi
-        return np.where(a <= -0.5 * math.pi, a + math.pi, a)
+        return np.array([_band_angle(n) for n in self.normals])
 
     @property
     def normal_angles_deg(self) -> np.ndarray:
@@ -376,12 +426,14 @@ class Localization:
 
 
 def _result(c: np.ndarray, normals: list[np.ndarray], ratios: list[float]) -> Localization:
-    """Deduplicate (n ~ -n), sort by ratio and attach slip directions."""
-    order = np.argsort(ratios, kind="stable")
+    """Deduplicate (n ~ -n), sort by ratio (ties within 1e-10: band angle descending), add slips."""
+    normals = [_canonical(n / np.linalg.norm(n)) for n in normals]
+    band = [_band_angle(n) for n in normals]
+    order = sorted(range(len(ratios)), key=lambda k: (round(float(ratios[k]), 10), -band[k]))
     keep_n: list[np.ndarray] = []
     keep_r: list[float] = []
     for k in order:
-        n = _canonical(normals[k] / np.linalg.norm(normals[k]))
+        n = normals[k]
         if any(abs(abs(float(n @ q)) - 1.0) < 1.0e-12 or np.linalg.norm(n - q) < 1e-7 for q in keep_n):
             continue
         keep_n.append(n)
@@ -412,8 +464,9 @@ def localization_3d(c: np.ndarray, ce: np.ndarray, n_polar: int = N_POLAR, n_azi
     """Minima of det A / det A^e over unit normals: sphere sweep, then Newton refinement of each."""
     c = np.ascontiguousarray(c, dtype=float)
     ce = np.ascontiguousarray(ce, dtype=float)
-    cand = _sphere_candidates(c, ce, n_polar, n_azimuth, max_candidates)
-    normals = [_refine_sphere(c, ce, n) for n in cand]
+    cand = np.empty((max_candidates, 3))
+    k = _sphere_candidates(c, ce, n_polar, n_azimuth, cand)
+    normals = [_refine_sphere(c, ce, n) for n in cand[:k]]
     ratios = [float(_ratio(c, ce, n)) for n in normals]
     return _result(c, normals, ratios)
 
@@ -491,7 +544,7 @@ def rudnicki_rice_angle(sigma: np.ndarray, beta: float, b: float, nu: float) -> 
     sd = w - w.mean()
     j2 = 0.5 * float(sd @ sd)
     nn = sd[1] / math.sqrt(j2)
-    alpha = ((2.0 / 3.0) * (1.0 + nu) * (beta + b) - nn * (1.0 - 2.0 * nu)) / math.sqrt(4.0 - 3.0 * nn * nn)
+    alpha = ((2.0 / 3.0) * (1.0 + nu) * (beta + b) - nn * (1.0 - 2.0 * nu)) / math.sqrt(4.0 - 3.0 * nn**2)
     return 0.25 * math.pi + 0.5 * math.asin(min(1.0, max(-1.0, alpha)))
 
 

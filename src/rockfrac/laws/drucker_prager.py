@@ -271,6 +271,9 @@ def return_map(eps, s_old, p, sigma_out, c_out, s_new):
 
 @nb.njit(cache=True, parallel=True)
 def return_map_points(eps, s_old, p, sigma, c, s_new, status):
-    """Return map at n points: eps (n, 6), s_old/s_new (n, N_STATE), sigma (n, 6), c (n, 6, 6), status (n,)."""
+    """Return map at n points (prange, each one a :func:`return_map`).
+
+    eps (n, 6), s_old/s_new (n, N_STATE), sigma (n, 6), c (n, 6, 6), status (n,).
+    """
     for i in nb.prange(eps.shape[0]):
         status[i] = return_map(eps[i], s_old[i], p, sigma[i], c[i], s_new[i])

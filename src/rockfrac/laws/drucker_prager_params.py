@@ -68,7 +68,8 @@ def mohr_coulomb_kappa(phi: float, c: float) -> float:
 def mohr_coulomb_angle(beta: float) -> float:
     """Inverse of :func:`mohr_coulomb_beta`: phi [rad] with tan(phi) = 3 beta / sqrt(9 - 12 beta^2)."""
     if not 0.0 <= beta < math.sqrt(3.0) / 2.0:
-        raise ValueError(f"beta = {beta!r}: a plane-strain Mohr-Coulomb match needs 0 <= beta < sqrt(3)/2")
+        raise ValueError(f"beta = {beta!r}: a plane-strain Mohr-Coulomb match needs "
+                         "0 <= beta < sqrt(3)/2")
     return math.atan(3.0 * beta / math.sqrt(9.0 - 12.0 * beta * beta))
 
 

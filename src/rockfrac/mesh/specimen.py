@@ -42,8 +42,11 @@ def cracked_specimen(
 
     Each block (below and above the crack) is an ``nx`` x ``ny`` grid; the crack carries ``nx``
     interface cells with the normal pointing up (lower block = minus side). With ``crack=False``
-    the crack nodes are merged and the mesh is the uncracked block.
+    the mesh is the uncracked block, a plain ``nx`` x ``ny`` grid.
     """
+    if not crack:
+        nodes, quads = _block(np.array([[0.0, 0.0], [width, 0.0], [width, height], [0.0, height]]), nx, ny, 0)
+        return Mesh(nodes=nodes, cells=quads, cell_type="quad4", **_boundary_groups(nodes, quads, width, height))
     if not (-0.5 * math.pi < angle < 0.5 * math.pi):
         raise ValueError("crack angle must lie strictly between -pi/2 and pi/2 rad")
     y_left, y_right = crack_ends(width, height, angle)
@@ -61,19 +64,7 @@ def cracked_specimen(
     quads = np.vstack([ql, qu])
     crack_minus = np.arange(ny * (nx + 1), n_lower)  # top row of the lower block
     crack_plus = n_lower + np.arange(nx + 1)  # bottom row of the upper block
-    if crack:
-        interfaces = np.stack(
-            [crack_minus[:-1], crack_minus[1:], crack_plus[:-1], crack_plus[1:]], axis=-1
-        )
-    else:
-        remap = np.arange(nodes.shape[0])
-        remap[crack_plus] = crack_minus
-        keep = np.ones(nodes.shape[0], dtype=bool)
-        keep[crack_plus] = False
-        new_index = np.cumsum(keep) - 1
-        quads = new_index[remap[quads]]
-        nodes = nodes[keep]
-        interfaces = np.zeros((0, 4), dtype=np.int64)
+    interfaces = np.stack([crack_minus[:-1], crack_minus[1:], crack_plus[:-1], crack_plus[1:]], axis=-1)
     return Mesh(nodes=nodes, cells=quads, cell_type="quad4", interfaces=interfaces,
                 **_boundary_groups(nodes, quads, width, height))
 

@@ -9,8 +9,9 @@ iteration takes a load-controlled predictor increment instead, until the surface
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
-of the largest so far) below tolerance, no change of state (constrained <-> plastic) in the
-last iteration, and, under path control, the constraint met. Every iteration is logged.
+of the largest so far) below tolerance, element-level equations of condensed unknowns (the
+embedded jumps) met to the residual tolerance, no change of state (constrained <-> plastic) in
+the last iteration, and, under path control, the constraint met. Every iteration is logged.
 """
 
 from __future__ import annotations
@@ -123,7 +124,7 @@ def newton_step(
             rel_e = abs(float(last_du[free] @ r[free])) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
             if (rel <= options.tol_residual and rel_e <= options.tol_energy and asm.n_switched == 0
-                    and g_ok):
+                    and g_ok and asm.local_residual <= options.tol_residual):
                 result.converged = True
                 result.iterations = it
                 result.f_int = asm.f_int

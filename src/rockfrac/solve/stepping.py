@@ -5,7 +5,9 @@ start to its end values with a load factor lam: 0 -> 1. Steps are load-controlle
 until the stage's ``path`` (if any) becomes active, or a load-controlled step fails where the
 path is available (a limit point, or a snap-back at activation); from then on each step prescribes an
 increment of a path measure (e.g. the mean crack jump along the flow directions) and lam is solved for, so limit points
-and snap-backs are traced. Each converged step is committed and handed to ``on_step``; a failed
+and snap-backs are traced. A step in which an event indicator of the model (the loss of
+ellipticity of a Drucker-Prager cell) crosses zero is shortened to end at the event. Each
+converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
 keeping every converged step.
 """
@@ -49,6 +51,7 @@ class SteppingOptions:
     min_step: float = 1e-4  # smallest increment, as a fraction of the nominal one
     grow: float = 1.5  # increment growth after an easy step, up to the nominal one
     easy_iterations: int = 6
+    event_tol: float = 1e-4  # a step may end this far past an event (indicator in [-tol, 0])
 
 
 @dataclass
@@ -130,6 +133,15 @@ def run_stages(
                                      f"{lam:.6f}: {mode} increment below min_step after {cutbacks} "
                                      f"cutbacks ({res.message})", u)
                 continue
+            crossing = model.event()
+            if crossing is not None and crossing[0] > stepping.event_tol and crossing[1] < -stepping.event_tol:
+                before, after = crossing  # end the step at the event: secant on the step size
+                frac = min(0.9, max(0.05, before / (before - after)))
+                if size[mode] * frac >= stepping.min_step * nominal[mode]:
+                    log(f"  {stage.name}: event indicator {before:.3e} -> {after:.3e} in the step; "
+                        f"shortening it by {frac:.3f} to land on the event")
+                    size[mode] *= frac
+                    continue
             model.commit()
             u, lam = res.u, res.lam
             count += 1

@@ -1,0 +1,200 @@
+"""Drucker-Prager bulk with embedded strong discontinuities (EDE, paper Sect. 3.1, 5; EDE_NOTES).
+
+Every cell is a Drucker-Prager solid until, at the end of a converged step, the acoustic tensor
+of eq. (7)-(8) at one of its plastic Gauss points loses ellipticity (min det A / det A^e <= 0).
+The cell then localizes for good: a surface through its centroid with that normal (the conjugate
+chosen by ``band``), c_p from eq. (28) on the converged stress, the bulk frozen elastic. See
+:mod:`rockfrac.elements.ede_kernel` for the element equations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rockfrac.elements import ede_kernel as K
+from rockfrac.elements.plastic_solid import DruckerPragerSolid
+from rockfrac.elements.solid import Evaluation
+from rockfrac.fem.reference import ReferenceElement
+from rockfrac.laws.bifurcation import localization_at
+from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
+from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw, strengths
+
+
+@dataclass(frozen=True)
+class Onset:
+    """Where and how a cell localized: step count, normal, band angle [rad], det ratio, c_p [Pa]."""
+
+    cell: int
+    normal: np.ndarray
+    band_angle: float
+    det_ratio: float
+    c_p: float
+    conjugate_band_angle: float
+
+
+class EmbeddedDruckerPrager(DruckerPragerSolid):
+    """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
+
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
+                 surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True):
+        super().__init__(nodes, cells, ref, law)
+        if band not in ("positive", "negative"):
+            raise ValueError(f"band must be 'positive' or 'negative', got {band!r}")
+        self.surface = surface
+        self.band = band
+        self.plane_strain = plane_strain
+        self.x = nodes[cells]  # (n_el, n_nodes, dim)
+        self.ce = law.elastic_matrix()
+        n_el, n_qp = self.wdet.shape
+        self.e_state = np.zeros((n_el, K.N_E))
+        self.e_trial = np.zeros_like(self.e_state)
+        self.gradf = np.zeros((n_el, n_qp, 3))
+        self.onsets: list[Onset] = []
+        nd = self.dofs.shape[1]
+        self._dz = np.zeros(n_el)  # jump increments of the current iterate
+        self._d_prev = np.zeros((n_el, nd))  # element dofs, r, dr/dd, dr/d dzeta of the last evaluation
+        self._r_prev = np.zeros(n_el)
+        self._h_prev = np.zeros((n_el, nd))
+        self._k_prev = np.zeros(n_el)
+        self.local_residual = 0.0  # max |r| / c_p of the last evaluation
+        self.last_event = 1.0  # min det ratio of the committed state over cells that may localize
+
+    # -- state -----------------------------------------------------------------------------
+    def begin_step(self) -> None:
+        super().begin_step()
+        self.e_trial[:] = self.e_state
+        self._dz[:] = 0.0
+        self._k_prev[:] = 0.0
+
+    def commit(self) -> None:
+        super().commit()
+        self.e_state[:] = self.e_trial
+        self.last_event = self._localize()
+
+    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        """Cells at the global iterate u; the jumps follow d dzeta = -(r + h . dd) / k (condensation)."""
+        n_el, nd = self.dofs.shape
+        d = np.ascontiguousarray(u[self.dofs])
+        if np.array_equal(u, u_n):  # first iterate of a step: sliding cells go on sliding
+            self._dz[:] = 0.0
+            slide = self.e_state[:, K.E_MODE] == 1.0
+        else:
+            sliding = self._k_prev != 0.0
+            dd = d[sliding] - self._d_prev[sliding]
+            self._dz[sliding] -= (self._r_prev[sliding] + np.einsum("ei,ei->e", self._h_prev[sliding], dd)) \
+                / self._k_prev[sliding]
+            slide = sliding & (self._dz > 0.0)
+        mode_prev = self.e_trial[:, K.E_MODE].copy()
+        fe = np.empty((n_el, nd))
+        ke = np.empty((n_el, nd, nd))
+        K.ede_blocks(self.grads, self.wdet, d, self.state, self.p, self.ce, self.e_state, self.gradf,
+                     self.surface_params, self._dz, slide, self.trial, self.trial_sigma, self.e_trial, fe, ke,
+                     self.status, self._r_prev, self._k_prev, self._h_prev)
+        self._d_prev[:] = d
+        cp = np.maximum(self.e_state[:, K.E_CP], 1.0)
+        self.local_residual = float(np.max(np.abs(self._r_prev) / cp, initial=0.0))
+        loc = self.e_state[:, K.E_LOC] == 1.0
+        switched = int(np.sum(loc & (self.e_trial[:, K.E_MODE] != mode_prev)))
+        bad = np.flatnonzero(self.status < 0)
+        if not bad.size:
+            return Evaluation(fe, ke, n_switched=switched, local_residual=self.local_residual)
+        why = {K.ST_DP_FAIL: "no Drucker-Prager return", K.ST_NOT_UNIQUE: "the jump does not enter eq. (27)"}
+        return Evaluation(fe, ke, ok=False, message=f"EDE cells {bad[:5].tolist()}: {why[int(self.status[bad[0]])]}")
+
+    @property
+    def surface_params(self) -> np.ndarray:
+        return self.surface.as_array(c_p=0.0)  # c_p per cell lives in the state (eq. 28)
+
+    # -- bifurcation and localization ------------------------------------------------------
+    def _candidates(self, state: np.ndarray) -> np.ndarray:
+        """Cells not yet localized with a Gauss point on the cone in the last update."""
+        plastic = (state[..., S_MODE] == MODE_CONE).any(axis=1)
+        return np.flatnonzero(plastic & (self.e_trial[:, K.E_LOC] == 0.0))
+
+    def event(self) -> float:
+        """Min det A / det A^e (eq. 7-8) over the trial (converged, uncommitted) plastic points of
+        cells that may still localize; 1 if there are none."""
+        return self._scan(self.trial, self.trial_sigma)[0]
+
+    def _scan(self, state: np.ndarray, sigma: np.ndarray):
+        best, where = 1.0, {}
+        for e in self._candidates(state):
+            for q in np.flatnonzero(state[e, :, S_MODE] == MODE_CONE):
+                loc = localization_at(self.law, sigma[e, q], plane_strain=self.plane_strain)
+                if loc.min_ratio < where.get(e, (np.inf,))[0]:
+                    where[e] = (loc.min_ratio, q, loc)
+                best = min(best, loc.min_ratio)
+        return best, where
+
+    onset_tol = 1e-4  # localize when min det A / det A^e <= this (the stepping lands within it)
+
+    def _localize(self) -> float:
+        """Localize every cell whose committed state has det A / det A^e <= onset_tol; returns the
+        min det ratio over the cells that may still localize (1 if none)."""
+        best, where = self._scan(self.state, self.sigma)
+        for e, (ratio, q, loc) in where.items():
+            if ratio <= self.onset_tol:
+                self._open(e, ratio, loc)
+        return best
+
+    def _choose(self, loc) -> tuple[np.ndarray, float]:
+        """The normal of the requested conjugate band (band angle > 0 or < 0) and the other's angle."""
+        angles = loc.band_angles
+        ranked = sorted(range(len(angles)), key=lambda k: loc.ratios[k])[:2]
+        want = [k for k in ranked if (angles[k] > 0) == (self.band == "positive")]
+        k = want[0] if want else ranked[0]
+        other = [j for j in ranked if j != k]
+        return loc.normals[k], (float(angles[other[0]]) if other else math.nan)
+
+    def _open(self, e: int, ratio: float, loc) -> None:
+        n, other = self._choose(loc)
+        n = n / np.linalg.norm(n)
+        if n[1] < 0 or (n[1] == 0 and n[0] < 0):
+            n = -n  # n points up (the + side is above the surface), like the CSE's normal
+        t = np.array([n[1], -n[0], 0.0])  # (t, n) right-handed in the x-y plane
+        dim = self.dim
+        xc = self.x[e].mean(axis=0)
+        active = (self.x[e] - xc) @ n[:dim] > 0.0
+        if active.all() or not active.any():
+            raise RuntimeError(f"cell {e}: the surface through the centroid leaves no node on one side")
+        self.gradf[e, :, :dim] = self.grads[e][:, active, :].sum(axis=1)
+        w = self.wdet[e] / self.wdet[e].sum()
+        tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
+        sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])
+        q, p = t @ sig @ n, n @ sig @ n
+        tphi = math.tan(self.surface.phi_p)
+        c_p = self.surface.c_p if self.surface.c_p is not None else abs(q) + tphi * min(p, 0.0)  # eq. (28)
+        s = self.e_state[e]
+        s[K.E_LOC] = 1.0
+        s[K.E_N:K.E_N + 3] = n
+        s[K.E_T:K.E_T + 3] = t
+        s[K.E_CP] = c_p
+        s[K.E_Q], s[K.E_P] = q, p
+        s[K.E_SIGN] = 1.0 if q >= 0 else -1.0
+        self.e_trial[e] = s
+        self.onsets.append(Onset(e, n, float(math.atan2(t[1], t[0])), ratio, c_p, other))
+
+    # -- output ----------------------------------------------------------------------------
+    def localized(self) -> np.ndarray:
+        return np.flatnonzero(self.e_state[:, K.E_LOC] == 1.0)
+
+    def records(self) -> dict[str, np.ndarray]:
+        """Committed per-discontinuity quantities (one point per localized cell, local frame (t, n))."""
+        cells = self.localized()
+        s = self.e_state[cells]
+        j = s[:, K.E_J:K.E_J + 3]
+        jt = np.einsum("ci,ci->c", j, s[:, K.E_T:K.E_T + 3])
+        jn = np.einsum("ci,ci->c", j, s[:, K.E_N:K.E_N + 3])
+        law = self.surface_params
+        q = np.array([strengths(g, cp, law)[:3] for g, cp in zip(s[:, K.E_GAMMA], s[:, K.E_CP])]).reshape(-1, 3)
+        centre = self.x[cells].mean(axis=1) if cells.size else np.zeros((0, self.dim))
+        return {
+            "cell": cells, "x": centre[:, 0], "y": centre[:, 1], "jump_t": jt, "jump_n": jn,
+            "T_t": s[:, K.E_Q], "T_n": s[:, K.E_P], "jump_p_t": jt, "jump_p_n": jn,
+            "jump_p_norm": np.linalg.norm(j, axis=1), "gamma": s[:, K.E_GAMMA], "zeta": s[:, K.E_ZETA],
+            "c": q[:, 0], "tan_phi": q[:, 1], "tan_psi": np.tan(q[:, 2]), "c_p": s[:, K.E_CP],
+            "mode": s[:, K.E_MODE],
+        }

@@ -8,13 +8,14 @@ import pytest
 from rockfrac.case.schema import parse_case
 from rockfrac.output.csvout import read_csv
 from rockfrac.run import run_case
+from rockfrac.studies import table1
 
 TABLE1 = {
     "GfI": 1e4, "GfII": 1e4, "chi_p": 15680.0, "chi_r": 0.0, "c_p": 9053.0, "c_r": 0.0,
     "phi_p": 0.5236, "phi_r": 0.0, "psi_p": 0.087, "alpha_chi": 2e3, "alpha_c": 2e3,
     "alpha_phi": 9e2, "alpha_psi": 9e2,
 }
-THETA = math.radians(60.0)
+THETA = table1.CRACK_ANGLE  # the EDE's bifurcation band (paper Sect. 7)
 E, NU, P, W, H = 1.5e7, 0.3, 2e4, 0.04, 0.08
 
 

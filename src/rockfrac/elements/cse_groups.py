@@ -90,6 +90,7 @@ class _CohesiveGroup:
             "cell": self.points.cell,
             "x": self.points.x[:, 0],
             "y": self.points.x[:, 1],
+            "angle": np.arctan2(self.points.frame[:, 0, 1], self.points.frame[:, 0, 0]),
             "jump_t": jump[:, 0],
             "jump_n": jump[:, 1],
             "T_t": s[:, 0],

@@ -151,23 +151,40 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
 
     def _open(self, e: int, ratio: float, loc) -> None:
         n, other = self._choose(loc)
-        n = n / np.linalg.norm(n)
+        c_p = self.localize_cell(e, n)
+        s = self.e_state[e]
+        band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))
+        self.onsets.append(Onset(e, s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other))
+
+    def localize_cell(self, e: int, normal: np.ndarray, c_p: float | None = None) -> float:
+        """Cut cell e by the surface through its centroid with this normal; returns its c_p [Pa].
+
+        n is signed to point up (the + side above, like the CSE's), t = (n_y, -n_x); active nodes
+        (X_a - X_c) . n > 0; c_p from eq. (28) on the committed stress unless given (or set in the
+        law). The cell's bulk is frozen from here on.
+        """
+        n = np.zeros(3)
+        n[: len(normal)] = normal
+        n /= np.linalg.norm(n)
         if n[1] < 0 or (n[1] == 0 and n[0] < 0):
-            n = -n  # n points up (the + side is above the surface), like the CSE's normal
+            n = -n
         t = np.array([n[1], -n[0], 0.0])  # (t, n) right-handed in the x-y plane
         dim = self.dim
         xc = self.x[e].mean(axis=0)
         active = (self.x[e] - xc) @ n[:dim] > 0.0
         if active.all() or not active.any():
             raise RuntimeError(f"cell {e}: the surface through the centroid leaves no node on one side")
+        self.gradf[e] = 0.0
         self.gradf[e, :, :dim] = self.grads[e][:, active, :].sum(axis=1)
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])
         q, p = t @ sig @ n, n @ sig @ n
-        tphi = math.tan(self.surface.phi_p)
-        c_p = self.surface.c_p if self.surface.c_p is not None else abs(q) + tphi * min(p, 0.0)  # eq. (28)
+        if c_p is None:
+            tphi = math.tan(self.surface.phi_p)
+            c_p = self.surface.c_p if self.surface.c_p is not None else abs(q) + tphi * min(p, 0.0)  # eq. (28)
         s = self.e_state[e]
+        s[:] = 0.0
         s[K.E_LOC] = 1.0
         s[K.E_N:K.E_N + 3] = n
         s[K.E_T:K.E_T + 3] = t
@@ -175,7 +192,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         s[K.E_Q], s[K.E_P] = q, p
         s[K.E_SIGN] = 1.0 if q >= 0 else -1.0
         self.e_trial[e] = s
-        self.onsets.append(Onset(e, n, float(math.atan2(t[1], t[0])), ratio, c_p, other))
+        return float(c_p)
 
     # -- output ----------------------------------------------------------------------------
     def localized(self) -> np.ndarray:
@@ -193,6 +210,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         centre = self.x[cells].mean(axis=1) if cells.size else np.zeros((0, self.dim))
         return {
             "cell": cells, "x": centre[:, 0], "y": centre[:, 1], "jump_t": jt, "jump_n": jn,
+            "angle": np.arctan2(s[:, K.E_T + 1], s[:, K.E_T]),
             "T_t": s[:, K.E_Q], "T_n": s[:, K.E_P], "jump_p_t": jt, "jump_p_n": jn,
             "jump_p_norm": np.linalg.norm(j, axis=1), "gamma": s[:, K.E_GAMMA], "zeta": s[:, K.E_ZETA],
             "c": q[:, 0], "tan_phi": q[:, 1], "tan_psi": np.tan(q[:, 2]), "c_p": s[:, K.E_CP],

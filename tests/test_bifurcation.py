@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 from rockfrac.cli import main
+from rockfrac.studies import table1
 from rockfrac.laws import bifurcation as bf
 from rockfrac.laws import drucker_prager as dp
 from rockfrac.laws.drucker_prager_params import DruckerPrager
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "laws" / "dp_gosford.toml"
+EXAMPLE = ROOT / "examples" / "laws" / "dp_calibrated.toml"
+GOSFORD = ROOT / "examples" / "laws" / "dp_gosford.toml"
 VOIGT = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)]
 
 
@@ -221,6 +223,10 @@ def test_cli_prints_the_angles_of_the_example(capsys):
     assert main(["bifurcation", str(EXAMPLE), "--stress=-2e4,-5e4,-2e4,0"]) == 0
     out = " ".join(capsys.readouterr().out.split())
     assert "inside the yield surface" in out and "not localized" in out
+    # the paper's own parameters at their onset: the CSE cases' crack angle
+    assert main(["bifurcation", str(GOSFORD)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert f"{math.degrees(table1.CRACK_ANGLE):.4f}" in out and "147.2371" in out and "onset" in out
 
 
 GOOD = EXAMPLE.read_text()

@@ -91,7 +91,7 @@ def test_onset_does_not_depend_on_the_step_size():
 
 
 def test_stored_files_agree():
-    material = tomllib.loads((ROOT / "examples" / "laws" / "dp_gosford.toml").read_text())["material"]
+    material = tomllib.loads((ROOT / "examples" / "laws" / "dp_calibrated.toml").read_text())["material"]
     assert material == PARAMETERS
     script = runpy.run_path(str(ROOT / "scripts" / "calibrate_dp.py"))  # not __main__: nothing runs
     theta = script["target_angle"]()

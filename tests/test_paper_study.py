@@ -1,42 +1,94 @@
-"""``rockfrac paper`` end to end on a small step count; the example files equal Table 1."""
+"""``rockfrac paper`` end to end on a small step count, the paper's claims on its CSVs; the example
+files equal the study's cases."""
 
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from rockfrac import analytic
 from rockfrac.case.schema import load_case, parse_case
 from rockfrac.cli import main
 from rockfrac.output.csvout import read_csv
-from rockfrac.studies import table1
+from rockfrac.studies import paper, table1
 
 ROOT = Path(__file__).resolve().parents[1]
+CASES = {"cse_ep_k1e9": paper.EP9, "cse_ep_k1e8": paper.EP8, "cse_rp": paper.RP, "ede": paper.EDE}
 
 
-@pytest.mark.parametrize("name,key", [("cse_ep_k1e9", "EP CSE k=1e9"), ("cse_ep_k1e8", "EP CSE k=1e8"),
-                                      ("cse_rp", "RP CSE")])
+@pytest.mark.parametrize("name,key", list(CASES.items()))
 def test_example_case_files_are_the_study_cases(name, key):
     example = load_case(ROOT / "examples" / "paper" / f"{name}.toml")
-    study = parse_case(table1.paper_cse_cases()[key])
-    for section in ("mesh", "bulk", "cohesive"):
+    study = parse_case(paper.study_cases(1200 if key == paper.EDE else 400)[key])
+    sections = ("mesh", "bulk", "cohesive", "embedded")
+    for section in sections:
         assert getattr(example, section) == getattr(study, section), section
     assert example.loading.confinement == study.loading.confinement
 
 
-def test_paper_command_writes_figures_csvs_and_report(tmp_path):
-    out = tmp_path / "paper"
-    assert main(["paper", "--out", str(out), "--steps", "80", "--quiet"]) == 0
-    for stem in ("fig5_force_displacement", "fig7_cohesion", "fig8_friction", "fig9_dilation"):
-        png = out / f"{stem}.png"
-        assert png.stat().st_size > 20_000  # a real plot, not an empty canvas
-        data = read_csv(out / f"{stem}.csv")
-        assert set(data["case"]) == {"EP CSE k=1e9", "EP CSE k=1e8", "RP CSE"}
-    fig5 = read_csv(out / "fig5_force_displacement.csv")
-    for case in ("EP CSE k=1e9", "EP CSE k=1e8", "RP CSE"):
-        f = fig5["F_axial"][fig5["case"] == case]
-        assert f[-1] < 0.6 * f.max()  # deep into softening
-    report = (out / "report.md").read_text()
-    assert "Table 1" in report and "fig5_force_displacement.png" in report
-    c = read_csv(out / "fig7_cohesion.csv")
-    rp = c["case"] == "RP CSE"
-    assert np.all(np.diff(c["c"][rp]) < 0)
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("paper")
+    assert main(["paper", "--out", str(out), "--steps", "100", "--quiet"]) == 0
+    return out
+
+
+def history(out, name):
+    folder = name.replace(" ", "_").replace("=", "").replace(",", "")
+    return read_csv(out / "cases" / folder / "history.csv")
+
+
+def test_every_figure_and_its_csv_is_written(study):
+    for stem in ("fig5_force_displacement", "fig6_deformed_meshes", "fig7_cohesion", "fig8_friction",
+                 "fig9_dilation", "fig5b_unreduced_rates"):
+        assert (study / f"{stem}.png").stat().st_size > 20_000  # a real plot, not an empty canvas
+        data = read_csv(study / f"{stem}.csv")
+        assert len(data["case"]) > 50
+    assert set(read_csv(study / "fig5_force_displacement.csv")["case"]) == set(paper.PAPER_CASES)
+    mesh = read_csv(study / "fig6_deformed_meshes.csv")
+    assert {"crack_minus", "crack_plus", "deformed", "undeformed"} <= set(mesh["line"][mesh["case"] == paper.EDE])
+    report = (study / "report.md").read_text()
+    for text in ("Table 1 as used", "Key numbers", "claims, checked", "fig6_deformed_meshes.png", "9053"):
+        assert text in report
+
+
+def test_the_papers_claims_hold_on_the_csvs(study):
+    rp, ep9, ep8, ede = (history(study, k) for k in (paper.RP, paper.EP9, paper.EP8, paper.EDE))
+    # RP CSE on the uncracked elastic curve until activation
+    pre = (rp["n_plastic"] == 0) & (rp["stage"] == "axial")
+    elastic = [analytic.elastic_force(u, 2e4, 1.5e7, 0.3, 0.04, 0.08) for u in rp["u_axial"][pre]]
+    np.testing.assert_allclose(rp["F_axial"][pre], elastic, rtol=1e-10)
+    # EP 1e9 close to RP; EP 1e8 visibly softer before the peak
+    u = np.linspace(1.0e-3, 4.0e-3, 20)  # through the softening branch
+    ax9, axr = ep9["stage"] == "axial", rp["stage"] == "axial"
+    np.testing.assert_allclose(np.interp(u, ep9["u_axial"][ax9], ep9["F_axial"][ax9]),
+                               np.interp(u, rp["u_axial"][axr], rp["F_axial"][axr]), rtol=0.02)
+    s_rp, s9, s8 = (paper._pre_peak_slope(h) for h in (rp, ep9, ep8))
+    assert 0.85 < s9 / s_rp < 0.95 and s8 / s_rp < 0.6
+    # EDE: rises after yield, bifurcates near 3700 N/m, softens to the residual p W
+    plastic = ede["bulk_plastic"] > 0
+    f_yield = ede["F_axial"][np.flatnonzero(plastic)[0] - 1]
+    onset = np.flatnonzero(ede["n_localized"] > 0)[0]
+    assert ede["F_axial"].max() > 1.1 * f_yield
+    assert 3550 < ede["F_axial"][onset] < 3750
+    assert ede["F_axial"][-1] == pytest.approx(800.0, rel=0.02)
+    # EP and RP: same ISV histories versus ||[u^p]||
+    c = read_csv(study / "fig7_cohesion.csv")
+    grid = np.linspace(4e-4, 3e-3, 30)  # past the first (sparse, coarse-step) plastic samples
+    a = np.interp(grid, c["jump_p_norm"][c["case"] == paper.RP], c["c"][c["case"] == paper.RP])
+    b = np.interp(grid, c["jump_p_norm"][c["case"] == paper.EP9], c["c"][c["case"] == paper.EP9])
+    assert np.abs(a - b).max() < 5e-3 * table1.CSE_LAW["c_p"]
+
+
+def test_beyond_the_paper_unreduced_rates_complete_through_a_snap_back(study):
+    h = history(study, paper.BEYOND)
+    assert h["u_axial"][-1] == pytest.approx(4e-3, rel=1e-9)
+    path = h["control"] == "path"
+    assert path.sum() > 20 and np.any(np.diff(h["u_axial"][path]) < 0)
+    # the softening branch obeys the closed form of the current strengths, as for the paper's cases
+    pl = h["n_plastic"] > 0
+    allowed = [analytic.strength_force(2e4, table1.CRACK_ANGLE, chi, cc, tp, 0.04)
+               for chi, cc, tp in zip(h["chi"][pl], h["c"][pl], h["tan_phi"][pl])]
+    np.testing.assert_allclose(h["F_axial"][pl], allowed, rtol=1e-7)
+    assert math.isclose(h["F_axial"][-1], history(study, paper.RP)["F_axial"][-1], rel_tol=0.05)

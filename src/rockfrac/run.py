@@ -22,11 +22,14 @@ STATE_NAMES = {0: "elastic", 1: "plastic"}
 
 @dataclass
 class RunSummary:
+    """What a run did: the stepping result (final u included), the model it ran, timings."""
+
     result: RunResult
     out: Path
     wall_time: float
     peak_force: float
     newton_iterations: int
+    built: Built | None = None
 
 
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
@@ -126,4 +129,4 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     wall = time.perf_counter() - t0
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
     log_fh.close()
-    return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]))
+    return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built)

@@ -1,7 +1,8 @@
-"""``rockfrac paper``: the paper's numerical study (Sect. 7, Fig. 5, 7-9) in one command.
+"""``rockfrac paper``: the paper's numerical study (Sect. 7, Table 1, Fig. 5-9) in one command.
 
-Runs the cases, then writes the figures, the CSV behind each figure and report.md into the
-output directory. The EDE case joins when the embedded-discontinuity element lands (issue 3).
+Runs the EDE and the three CSE cases (and, beyond the paper, the EP CSE with k = 1e8 and the
+unreduced softening rates the paper could not converge), then writes the figures, the CSV behind
+each figure and report.md, whose claims are computed from the runs.
 """
 
 from __future__ import annotations
@@ -16,114 +17,306 @@ import numpy as np
 from rockfrac import analytic
 from rockfrac.case.schema import parse_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.run import RunSummary, run_case
 from rockfrac.studies import table1
+
+EDE, EP9, EP8, RP = "EDE", "EP CSE k=1e9", "EP CSE k=1e8", "RP CSE"
+BEYOND = "EP CSE k=1e8, alpha=2e3"
+PAPER_CASES = (EDE, EP9, EP8, RP)
+STYLES = {EDE: ("tab:green", "-"), EP9: ("tab:blue", "-"), EP8: ("tab:orange", "--"), RP: ("k", ":"),
+          BEYOND: ("tab:red", "-.")}
+W, H = 0.04, 0.08
+RESIDUAL = table1.CONFINEMENT * W  # closed-form residual force of c_r = phi_r = 0 [N/m]
 
 
 @dataclass
 class CaseResult:
     name: str
     history: dict[str, np.ndarray]
-    wall: float
-    iterations: int
-    completed: bool
-    message: str
+    points: dict[str, np.ndarray]
+    summary: RunSummary
+
+    @property
+    def completed(self) -> bool:
+        return self.summary.result.completed
+
+    @property
+    def message(self) -> str:
+        return self.summary.result.message
+
+    @property
+    def iterations(self) -> int:
+        return self.summary.newton_iterations
+
+    @property
+    def wall(self) -> float:
+        return self.summary.wall_time
+
+
+def study_cases(axial_steps: int = 400) -> dict[str, dict]:
+    """Case dictionaries of the study: the EDE (same step size, three times as far), the CSEs."""
+    cases = {EDE: table1.ede_case(axial_steps=3 * axial_steps)}
+    cases.update(table1.paper_cse_cases(axial_steps=axial_steps, control="path"))
+    cases[BEYOND] = table1.cse_case("ep", 1e8, 2e3, axial_steps=axial_steps, control="path",
+                                    title="EP CSE, kn = kt = 1e8 Pa/m, alpha_chi = alpha_c = 2e3 (beyond the paper)")
+    return cases
 
 
 def run_cases(out: Path, axial_steps: int = 400, progress=None) -> list[CaseResult]:
-    """Run the paper's cases (path control past the peak) into out/cases/<name>."""
+    """Run the study's cases into out/cases/<name>."""
     results = []
-    cases = table1.paper_cse_cases(axial_steps=axial_steps, control="path")
-    for name, case in cases.items():
-        folder = out / "cases" / name.replace(" ", "_").replace("=", "")
+    for name, case in study_cases(axial_steps).items():
+        folder = out / "cases" / name.replace(" ", "_").replace("=", "").replace(",", "")
         summary = run_case(parse_case(case, name), folder,
                            progress=(lambda row, n=name: progress(n, row)) if progress else None)
-        results.append(CaseResult(name, read_csv(folder / "history.csv"), summary.wall_time,
-                                  summary.newton_iterations, summary.result.completed, summary.result.message))
+        results.append(CaseResult(name, read_csv(folder / "history.csv"), read_csv(folder / "points.csv"), summary))
     return results
 
 
-def _write_long_csv(path: Path, results: list[CaseResult], x: str, ys: list[str], transform=None) -> None:
+# --- numbers ------------------------------------------------------------------------------------
+
+
+def _first(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def key_numbers(r: CaseResult) -> dict:
+    """Yield and bifurcation force, angle, c_p, peak and residual force of a case."""
+    h, p = r.history, r.points
+    ax = h["stage"] == "axial"
+    out = {"peak": float(np.nanmax(h["F_axial"][ax])), "final": float(h["F_axial"][-1]),
+           "final_u": float(h["u_axial"][-1]), "iterations": r.iterations, "wall": r.wall}
+    plastic = h["bulk_plastic"] > 0 if r.name == EDE else h["n_plastic"] > 0
+    k = _first(plastic & ax)
+    out["yield"] = float(h["F_axial"][k - 1]) if k else math.nan  # last elastic / rigid step
+    if r.name == EDE:
+        onset = _first(h["n_localized"] > 0)
+        out["bifurcation"] = float(h["F_axial"][onset]) if onset is not None else math.nan
+        out["u_bifurcation"] = float(h["u_axial"][onset]) if onset is not None else math.nan
+        out["angle"] = float(p["angle"][0]) if p["angle"].size else math.nan
+        out["c_p"] = float(p["c_p"][0]) if p["c_p"].size else math.nan
+    else:
+        out["bifurcation"] = math.nan
+        out["angle"] = float(np.mean(p["angle"]))
+        out["c_p"] = table1.CSE_LAW["c_p"]
+    return out
+
+
+def _pre_peak_slope(h: dict) -> float:
+    """Secant dF/du of the axial stage up to 80% of the peak (elastic or rigid part)."""
+    ax = (h["stage"] == "axial") & (h["n_plastic"] == 0)
+    u, f = h["u_axial"][ax], h["F_axial"][ax]
+    keep = f <= 0.8 * np.nanmax(h["F_axial"])
+    return float(np.polyfit(u[keep], f[keep], 1)[0])
+
+
+def claims(results: dict[str, CaseResult]) -> list[tuple[str, str]]:
+    """The paper's qualitative claims, each with the number that supports it."""
+    out = []
+    rp = results[RP].history
+    pre = (rp["n_plastic"] == 0)
+    elastic = np.array([analytic.elastic_force(u, table1.CONFINEMENT * (lf if s == "confinement" else 1.0),
+                                               table1.BULK["E"], table1.BULK["nu"], W, H)
+                        for u, s, lf in zip(rp["u_axial"], rp["stage"], rp["load_factor"])])
+    dev = np.max(np.abs(rp["F_axial"][pre] - elastic[pre]) / np.abs(elastic[pre]))
+    out.append(("RP CSE follows the uncracked elastic curve until activation",
+                f"max relative deviation {dev:.1e} over {int(pre.sum())} steps before activation"))
+    s_rp, s9, s8 = (_pre_peak_slope(results[k].history) for k in (RP, EP9, EP8))
+    p_rp, p9 = (key_numbers(results[k])["peak"] for k in (RP, EP9))
+    out.append(("EP CSE k = 1e9 is nearly the RP curve",
+                f"pre-peak slope {100 * (s9 / s_rp - 1):+.1f} %, peak force {100 * (p9 / p_rp - 1):+.2f} % vs RP"))
+    out.append(("EP CSE k = 1e8 is visibly softer before the peak",
+                f"pre-peak slope {100 * (s8 / s_rp - 1):+.1f} % vs RP "
+                f"(series compliance: {100 * (analytic.series_slope(1.5e7, 0.3, W, H, 1e8, 1e8, table1.CRACK_ANGLE) / s_rp - 1):+.1f} %)"))
+    e = key_numbers(results[EDE])
+    out.append(("EDE: the force rises after Drucker-Prager yield (plane strain)",
+                f"first yield at {e['yield']:.0f} N/m, peak {e['peak']:.0f} N/m (+{100 * (e['peak'] / e['yield'] - 1):.1f} %)"))
+    out.append(("EDE: bifurcation (det A = 0) near 3700 N/m",
+                f"{e['bifurcation']:.0f} N/m at u = {1e3 * e['u_bifurcation']:.3f} mm, band at "
+                f"{math.degrees(e['angle']):.3f} deg from horizontal, c_p (eq. 28) = {e['c_p']:.0f} Pa (paper: 9053 Pa)"))
+    out.append(("EDE: exponential softening to a residual",
+                f"final force {e['final']:.1f} N/m vs the closed-form residual p W = {RESIDUAL:.0f} N/m "
+                f"({100 * (e['final'] / RESIDUAL - 1):+.2f} %)"))
+    h_rp, h_ep = results[RP].history, results[EP9].history
+    grid = np.linspace(0.05, 0.9, 30) * min(np.nanmax(h_rp["jump_p_norm"]), np.nanmax(h_ep["jump_p_norm"]))
+    worst = 0.0
+    for col, scale in (("c", table1.CSE_LAW["c_p"]), ("tan_phi", math.tan(table1.CSE_LAW["phi_p"])),
+                       ("tan_psi", math.tan(table1.CSE_LAW["psi_p"]))):
+        a = np.interp(grid, _mono(h_rp["jump_p_norm"]), h_rp[col][np.isfinite(h_rp["jump_p_norm"])])
+        b = np.interp(grid, _mono(h_ep["jump_p_norm"]), h_ep[col][np.isfinite(h_ep["jump_p_norm"])])
+        worst = max(worst, float(np.max(np.abs(a - b)) / scale))
+    out.append(("EP (1e9) and RP CSE have the same ISV histories versus ||[u^p]||",
+                f"max difference of c, tan phi, tan psi {100 * worst:.2f} % of their peaks"))
+    b = results[BEYOND]
+    back = np.any(np.diff(b.history["u_axial"][b.history["control"] == "path"]) < 0)
+    out.append(("Beyond the paper: EP CSE k = 1e8 with the unreduced rates (alpha = 2e3) runs to completion",
+                f"{'completed' if b.completed else 'stopped: ' + b.message}; "
+                f"{'snap-back traced by path following' if back else 'no snap-back'}, "
+                f"{len(b.history['step'])} steps, peak {key_numbers(b)['peak']:.0f} N/m"))
+    return out
+
+
+def _mono(x: np.ndarray) -> np.ndarray:
+    x = x[np.isfinite(x)]
+    return np.maximum.accumulate(x)
+
+
+# --- figures --------------------------------------------------------------------------------------
+
+
+def _long_csv(path: Path, header: list[str], rows) -> None:
     with open(path, "w") as fh:
-        fh.write(",".join(["case", x, *ys]) + "\n")
-        for r in results:
-            h = r.history
-            rows = (h["stage"] == "axial") if x == "u_axial" else (h["n_plastic"] > 0)
-            for i in np.flatnonzero(rows):
-                vals = [h[y][i] if transform is None else transform(y, h[y][i]) for y in ys]
-                fh.write(",".join([r.name, repr(float(h[x][i])), *[repr(float(v)) for v in vals]]) + "\n")
+        fh.write(",".join(header) + "\n")
+        for row in rows:
+            fh.write(",".join(v if isinstance(v, str) else repr(float(v)) for v in row) + "\n")
 
 
-def figures(out: Path, results: list[CaseResult]) -> list[str]:
-    """Fig. 5 and Fig. 7-9 as PNG with their CSVs; returns the file names."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+def _force_figure(out: Path, stem: str, results: list[CaseResult], title: str | None = None) -> None:
     import matplotlib.pyplot as plt
 
-    styles = {"EP CSE k=1e9": ("tab:blue", "-"), "EP CSE k=1e8": ("tab:orange", "--"), "RP CSE": ("k", ":")}
-    fig, ax = plt.subplots(figsize=(6, 4.2))
-    u = np.linspace(0, 6e-4, 50)
-    ax.plot(1e3 * u, [analytic.elastic_force(x, table1.CONFINEMENT, 1.5e7, 0.3, 0.04, 0.08) for x in u],
-            color="0.7", lw=4, label="uncracked elastic (closed form)")
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    u = np.linspace(0.0, 6e-4, 50)
+    ax.plot(1e3 * u, [analytic.elastic_force(x, table1.CONFINEMENT, 1.5e7, 0.3, W, H) for x in u],
+            color="0.75", lw=4, label="uncracked elastic (closed form)")
+    rows = []
     for r in results:
         a = r.history["stage"] == "axial"
-        c, ls = styles[r.name]
+        c, ls = STYLES[r.name]
         ax.plot(1e3 * r.history["u_axial"][a], r.history["F_axial"][a], color=c, ls=ls, label=r.name)
+        rows += [(r.name, uu, ff) for uu, ff in zip(r.history["u_axial"][a], r.history["F_axial"][a])]
+    ax.axhline(RESIDUAL, color="0.5", lw=0.8, ls=":")
     ax.set_xlabel("axial displacement [mm]")
     ax.set_ylabel("axial force [N/m]")
+    if title:
+        ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "fig5_force_displacement.png", dpi=150)
+    fig.savefig(out / f"{stem}.png", dpi=150)
     plt.close(fig)
-    _write_long_csv(out / "fig5_force_displacement.csv", results, "u_axial", ["F_axial"])
-    names = ["fig5_force_displacement.png"]
-    specs = [("fig7_cohesion", "c", "cohesion c [Pa]", None),
-             ("fig8_friction", "tan_phi", "friction angle phi [rad]", math.atan),
-             ("fig9_dilation", "tan_psi", "dilation angle psi [rad]", math.atan)]
-    for stem, col, label, fn in specs:
-        fig, ax = plt.subplots(figsize=(6, 4.2))
+    _long_csv(out / f"{stem}.csv", ["case", "u_axial", "F_axial"], rows)
+
+
+def _isv_figures(out: Path, results: list[CaseResult]) -> list[str]:
+    import matplotlib.pyplot as plt
+
+    names = []
+    for stem, col, label in (("fig7_cohesion", "c", "cohesion c [Pa]"),
+                             ("fig8_friction", "tan_phi", "friction angle phi [rad]"),
+                             ("fig9_dilation", "tan_psi", "dilation angle psi [rad]")):
+        fig, ax = plt.subplots(figsize=(6.4, 4.4))
+        rows = []
         for r in results:
             pl = r.history["n_plastic"] > 0
-            y = r.history[col][pl] if fn is None else np.arctan(r.history[col][pl])
-            c, ls = styles[r.name]
-            ax.plot(1e3 * r.history["jump_p_norm"][pl], y, color=c, ls=ls, label=r.name)
+            x = r.history["jump_p_norm"][pl]
+            y = r.history[col][pl] if col == "c" else np.arctan(r.history[col][pl])
+            c, ls = STYLES[r.name]
+            ax.plot(1e3 * x, y, color=c, ls=ls, label=r.name)
+            rows += [(r.name, xx, yy) for xx, yy in zip(x, y)]
         ax.set_xlabel("||[u^p]|| [mm]")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-        ax.legend()
+        ax.legend(fontsize=8)
         fig.tight_layout()
         fig.savefig(out / f"{stem}.png", dpi=150)
         plt.close(fig)
-        _write_long_csv(out / f"{stem}.csv", results, "jump_p_norm", [col],
-                        None if fn is None else (lambda y, v: math.atan(v)))
+        _long_csv(out / f"{stem}.csv", ["case", "jump_p_norm", "c" if col == "c" else col.replace("tan_", "")], rows)
         names.append(f"{stem}.png")
     return names
 
 
-def report(out: Path, results: list[CaseResult], names: list[str], wall: float) -> None:
-    """report.md: Table 1 as used, the figures, key numbers per case."""
+def _mesh_figure(out: Path, results: dict[str, CaseResult]) -> tuple[str, dict[str, float]]:
+    """Fig. 6: deformed (solid) and undeformed (dashed) meshes of the EDE and the EP CSE."""
+    import matplotlib.pyplot as plt
+
+    from rockfrac.output.plots import deformed_polylines, draw_deformed, magnification
+
+    fig, axes = plt.subplots(1, 2, figsize=(7.2, 5.6))
+    rows, mags = [], {}
+    for ax, name in zip(axes, (EDE, EP9)):
+        s = results[name].summary
+        mag = magnification(s.built, s.result.u)
+        mags[name] = mag
+        lines = deformed_polylines(s.built, s.result.u, mag)
+        what = "one Hex8, embedded crack" if name == EDE else "two Q4, cohesive surface"
+        draw_deformed(ax, lines, f"{name} ({what})\nu = {1e3 * results[name].history['u_axial'][-1]:.2f} mm, "
+                                 f"displacements x {mag:g}")
+        for kind, polys in lines.items():
+            for i, poly in enumerate(polys):
+                rows += [(name, kind, str(i), x, y) for x, y in poly]
+    fig.tight_layout()
+    fig.savefig(out / "fig6_deformed_meshes.png", dpi=150)
+    plt.close(fig)
+    _long_csv(out / "fig6_deformed_meshes.csv", ["case", "line", "index", "x", "y"], rows)
+    return "fig6_deformed_meshes.png", mags
+
+
+def figures(out: Path, results: list[CaseResult]) -> tuple[list[str], dict[str, float]]:
+    """Fig. 5-9 (and Fig. 5b, beyond the paper) as PNG with their CSVs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    by = {r.name: r for r in results}
+    paper = [by[k] for k in PAPER_CASES]
+    _force_figure(out, "fig5_force_displacement", paper)
+    _force_figure(out, "fig5b_unreduced_rates", [by[EP8], by[BEYOND], by[RP]],
+                  "Beyond the paper: EP CSE k = 1e8 with alpha = 2e3 (path following)")
+    fig6, mags = _mesh_figure(out, by)
+    names = ["fig5_force_displacement.png", fig6] + _isv_figures(out, paper) + ["fig5b_unreduced_rates.png"]
+    return names, mags
+
+
+# --- report ---------------------------------------------------------------------------------------
+
+
+def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[str, float], wall: float) -> None:
+    """report.md: Table 1 as used, the key numbers per case, the claims with numbers, the figures."""
+    by = {r.name: r for r in results}
     mc = analytic.mohr_coulomb_force(table1.CONFINEMENT, table1.CRACK_ANGLE, table1.CSE_LAW["c_p"],
-                                     math.tan(table1.CSE_LAW["phi_p"]), 0.04)
+                                     math.tan(table1.CSE_LAW["phi_p"]), W)
+    dp = table1.DRUCKER_PRAGER
     lines = [
         "# The paper's numerical study (Regueiro & Yu 2010, Sect. 7), reproduced by rockfrac", "",
-        f"Total wall time: {wall:.1f} s. Crack angle {math.degrees(table1.CRACK_ANGLE):.1f} deg (placeholder until the "
-        "EDE bifurcation analysis provides it); specimen 40 mm x 80 mm, E = 1.5e7 Pa, nu = 0.3, 20 kPa confinement. "
-        "The EDE case is not part of this study yet.", "",
-        "## Table 1 (CSE columns) as used", "", "| symbol | value |", "|---|---|",
-        *[f"| {k} | {v:g} |" for k, v in table1.CSE_LAW.items()],
-        "| kn = kt (EP) | 1e9, 1e8 Pa/m (alpha_chi = alpha_c = 2e3, 2e2) |", "",
+        f"Total wall time {wall:.1f} s. Specimen 40 mm x 80 mm, plane strain, E = 1.5e7 Pa, nu = 0.3, "
+        f"20 kPa confinement then top shortening. CSEs through the centre at {math.degrees(table1.CRACK_ANGLE):.4f} deg "
+        "from horizontal: the band angle where det A = 0 for the EDE's bulk (computed, see below).", "",
+        "## Table 1 as used", "",
+        "| symbol | EDE | EP CSE | RP CSE |", "|---|---|---|---|",
+        "| kt = kn | - | 1e9, 1e8 Pa/m | - |",
+        f"| GfI = GfII | - | {table1.CSE_LAW['GfI']:g} J/m^2 | {table1.CSE_LAW['GfI']:g} J/m^2 |",
+        f"| chi_p, chi_r | - | {table1.CSE_LAW['chi_p']:g}, 0 Pa | {table1.CSE_LAW['chi_p']:g}, 0 Pa |",
+        f"| c_p | eq. (28): {key_numbers(by[EDE])['c_p']:.0f} Pa | {table1.CSE_LAW['c_p']:g} Pa | {table1.CSE_LAW['c_p']:g} Pa |",
+        "| c_r | 0 | 0 | 0 |",
+        f"| phi_p, phi_r | {table1.EDE_LAW['phi_p']}, 0 rad | {table1.CSE_LAW['phi_p']}, 0 rad | {table1.CSE_LAW['phi_p']}, 0 rad |",
+        f"| psi_p | {table1.EDE_LAW['psi_p']} rad | {table1.CSE_LAW['psi_p']} rad | {table1.CSE_LAW['psi_p']} rad |",
+        "| alpha_chi | - | 2e3, 2e2 | 2e3 |", "| alpha_c | 5e2 1/m | 2e3, 2e2 | 2e3 |",
+        "| alpha_phi, alpha_psi | 5e2 1/m | 9e2 | 9e2 |", "",
+        f"EDE bulk, Drucker-Prager (the paper's ref [9], recovered from the author's Tahoe input; see "
+        f"scripts/calibrate_dp.py): kappa0 = {dp['kappa0']:g} Pa, beta = {dp['beta']}, b = {dp['b']}, "
+        f"H = {dp['H']:.6g} Pa (Tahoe's -1e6 Pa in F = ... - H gamma).", "",
         "## Key numbers", "",
-        f"Closed-form Mohr-Coulomb activation force on the crack plane: {mc:.1f} N/m.", "",
-        "| case | peak force [N/m] | final force [N/m] | final u [mm] | Newton iterations | wall [s] | completed |",
-        "|---|---|---|---|---|---|---|",
+        f"Closed-form Mohr-Coulomb activation force of the CSE plane: {mc:.1f} N/m; closed-form residual "
+        f"(c_r = phi_r = 0): confinement x width = {RESIDUAL:.0f} N/m.", "",
+        "| case | yield [N/m] | bifurcation [N/m] | angle [deg] | c_p [Pa] | peak [N/m] | final [N/m] at u [mm] | Newton its | wall [s] | completed |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        h = r.history
-        lines.append(f"| {r.name} | {np.nanmax(h['F_axial']):.1f} | {h['F_axial'][-1]:.1f} | "
-                     f"{1e3 * h['u_axial'][-1]:.3f} | {r.iterations} | {r.wall:.2f} | {'yes' if r.completed else 'no: ' + r.message} |")
-    lines += ["", "## Figures", ""] + [f"![{n}]({n})" for n in names]
+        k = key_numbers(r)
+        bif = "-" if math.isnan(k["bifurcation"]) else f"{k['bifurcation']:.1f}"
+        lines.append(f"| {r.name} | {k['yield']:.1f} | {bif} | {math.degrees(k['angle']):.3f} | {k['c_p']:.0f} | "
+                     f"{k['peak']:.1f} | {k['final']:.1f} at {1e3 * k['final_u']:.2f} | {k['iterations']} | "
+                     f"{k['wall']:.2f} | {'yes' if r.completed else 'no: ' + r.message} |")
+    lines += ["", "Yield: the last step before anything yields (EDE: the Drucker-Prager bulk; CSE: the surface). "
+              "Bifurcation: the step where det A / det A^e reaches 0 (located within the step).", "",
+              "## The paper's claims, checked", ""]
+    lines += [f"- **{claim}**: {number}." for claim, number in claims(by)]
+    lines += ["", "## Figures", ""]
+    captions = {"fig6_deformed_meshes.png": "Fig. 6: deformed (solid) and undeformed (dashed) meshes, displacements x "
+                + ", ".join(f"{mags[k]:g} ({k})" for k in mags) + ". The EDE's crack, invisible in the paper, is drawn inside its element: its - face red, its + face blue "
+                "(dashed); the upper block has slid down and to the left along it."}
+    for n in names:
+        lines += [f"![{n}]({n})", "", captions.get(n, ""), ""]
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
@@ -133,6 +326,6 @@ def run_paper(out: str | Path, axial_steps: int = 400, progress=None) -> list[Ca
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     results = run_cases(out, axial_steps, progress)
-    names = figures(out, results)
-    report(out, results, names, time.perf_counter() - t0)
+    names, mags = figures(out, results)
+    report(out, results, names, mags, time.perf_counter() - t0)
     return results

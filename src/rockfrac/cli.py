@@ -18,8 +18,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from rockfrac.case.schema import load_case
     from rockfrac.run import run_case
 
+    from rockfrac.case.build import build
+    from rockfrac.run import case_warnings
+
     case = load_case(args.case)
     console.print(f"[bold]rockfrac run[/] {args.case} -> {args.out}")
+    for w in case_warnings(build(case, str(args.case))):
+        console.print(f"[yellow]warning:[/] {w}", highlight=False)
 
     def progress(row: dict) -> None:
         if not args.quiet:
@@ -98,6 +103,19 @@ def _cmd_paper(args: argparse.Namespace) -> int:
     return 0 if all(r.completed for r in results) else 1
 
 
+def _cmd_penalty(args: argparse.Namespace) -> int:
+    from rockfrac.studies.penalty import run_penalty_study
+
+    with console.status("penalty study: EP CSE k = 1e7 ... 1e12 Pa/m against RP") as status:
+        rows = run_penalty_study(args.out, axial_steps=args.steps,
+                                 progress=lambda k: status.update(f"penalty study: EP CSE k = {k:.0e} Pa/m"))
+    for r in rows:
+        console.print(f"k = {r.k:.0e} Pa/m: k L/E' = {r.k_l_over_e:.3g}, slope error {r.slope_error:.2e}, "
+                      f"dissipation error {r.dissipation_error:.2e} {r.note}", highlight=False)
+    console.print(f"report: {args.out / 'penalty.md'}")
+    return 0
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rockfrac", description="Quasi-static FE fracture of rock.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -116,6 +134,10 @@ def parser() -> argparse.ArgumentParser:
     pp.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
     pp.add_argument("--quiet", action="store_true")
     pp.set_defaults(func=_cmd_paper)
+    ps = sub.add_parser("penalty-study", help="EP CSE penalty stiffness against RP: errors vs k, rule of thumb")
+    ps.add_argument("--out", type=Path, required=True)
+    ps.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
+    ps.set_defaults(func=_cmd_penalty)
     from rockfrac.bifurcation_cli import add_parser as _add_bif; _add_bif(sub)  # noqa: E702
     return p
 

@@ -30,6 +30,36 @@ class RunSummary:
     peak_force: float
     newton_iterations: int
     built: Built | None = None
+    warnings: list[str] | None = None
+
+
+PENALTY_ACCURACY = 0.01  # rockfrac run warns when an EP penalty's artificial compliance may exceed this
+
+
+def case_warnings(built: Built) -> list[str]:
+    """Things a user should know before trusting the run (not errors: the run goes ahead)."""
+    out = []
+    coh = built.case.cohesive
+    if coh is not None and coh.form.value == "ep":
+        from rockfrac.analytic import plane_strain_modulus
+        from rockfrac.studies.penalty import penalty_rule
+
+        e_plane = plane_strain_modulus(built.case.bulk.E, built.case.bulk.nu)
+        length = float(np.ptp(built.mesh.nodes[:, 1]))  # the bulk's length along the load
+        k = min(coh.kn, coh.kt)
+        need = penalty_rule(e_plane, length, PENALTY_ACCURACY)
+        if k < need:
+            x = e_plane / (k * length)  # the penalty's compliance relative to the bulk's (upper estimate)
+            out.append(f"EP CSE penalty kn, kt = {coh.kn:.3g}, {coh.kt:.3g} Pa/m: k L/E' = {1 / x:.3g} (L = {length:g} m), "
+                       f"so the penalty may add up to {100 * x:.3g} % of the bulk's compliance (pre-peak stiffness "
+                       f"up to {100 * x / (1 + x):.3g} % too low); k >= {need:.3g} Pa/m keeps the error below "
+                       f"{100 * PENALTY_ACCURACY:g} % (rockfrac penalty-study)")
+        soft = built.cohesive.law.softening_modulus()
+        if k < soft:
+            out.append(f"EP CSE penalty {k:.3g} Pa/m is below the law's softening slope (~{soft:.3g} Pa/m): the "
+                       "traction law may have no unique return (the material point snaps back); raise kn, kt or "
+                       "use form = 'rp'")
+    return out
 
 
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
@@ -95,6 +125,9 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     def log(msg: str) -> None:
         log_fh.write(msg + "\n")
 
+    warnings = case_warnings(built)
+    for w in warnings:
+        log(f"warning: {w}")
     sol = case.solver
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                            force_scale=1e-6 * case.bulk.E * case.mesh.width)
@@ -129,4 +162,4 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     wall = time.perf_counter() - t0
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
     log_fh.close()
-    return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built)
+    return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built, warnings)

@@ -40,29 +40,44 @@ class SuperLU:
 class _PardisoFactor:
     def __init__(self, solver, a: sp.csr_matrix):
         self._solver, self._a = solver, a
-        solver.factorize(a)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         return self._solver.solve(self._a, b)
 
 
 class Pardiso:
-    """Intel MKL PARDISO through pypardiso (optional: ``pip install pypardiso``), unsymmetric mode."""
+    """Intel MKL PARDISO through pypardiso (optional: ``pip install pypardiso``), unsymmetric mode.
+
+    One PARDISO instance serves the whole run: each factorization first frees the previous one's
+    factors (MKL would otherwise keep every factorization alive: memory grows by the size of a
+    factorization per Newton iteration), and the instance's set-up cost is paid once.
+    """
 
     name = "pardiso"
 
     def __init__(self) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
 
+        self._solver = None
+
     def factorize(self, a: sp.csr_matrix) -> Factorization:
         import pypardiso
 
-        solver = pypardiso.PyPardisoSolver(mtype=11)  # a fresh solver: no stale factorization reuse
-        solver.set_statistical_info_off()
-        return _PardisoFactor(solver, sp.csr_matrix(a))
+        if self._solver is None:
+            self._solver = pypardiso.PyPardisoSolver(mtype=11)
+            self._solver.set_statistical_info_off()
+        else:
+            self._solver.free_memory(everything=False)  # release the last factors
+        a = sp.csr_matrix(a)
+        self._solver.factorize(a)  # explicit: never a stale factorization of an equal-looking matrix
+        return _PardisoFactor(self._solver, a)
 
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
         return self.factorize(a).solve(b)
+
+    def __del__(self) -> None:
+        if getattr(self, "_solver", None) is not None:
+            self._solver.free_memory(everything=True)
 
 
 SOLVERS = {"superlu": SuperLU, "pardiso": Pardiso}

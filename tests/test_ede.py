@@ -64,6 +64,10 @@ def test_onset_angle_and_force_agree_with_the_material_point_driver(ede_runs):
     # the FE onset normal: the positive conjugate band through the centre
     log = (folder / "run.log").read_text()
     assert "shortening it" in log
+    line = [x for x in log.splitlines() if "bifurcation at step" in x][0]
+    bands = [float(x) for x in re.findall(r"band ([+-][0-9.]+) deg", line)]
+    np.testing.assert_allclose(sorted(bands), np.degrees(sorted(angles)), atol=0.01)  # both conjugates
+    assert line.count("m = (") == 2  # with their slip directions
 
 
 def test_stress_is_continuous_at_bifurcation(ede_runs):
@@ -213,3 +217,22 @@ def test_condensed_tangent_is_the_schur_complement_of_exact_derivatives(ref):
     np.testing.assert_allclose(fc, f - g * r / kz, rtol=1e-6, atol=1e-6 * np.abs(f).max())
     schur = k_dd - np.outer(g, h) / kz
     np.testing.assert_allclose(kc, schur, rtol=1e-6, atol=1e-6 * np.abs(schur).max())
+
+
+def test_path_following_traces_the_same_softening_branch(ede_runs, tmp_path):
+    """control = "path" on the EDE (mean + side / - side nodal opening along the slip): the same
+    curve as displacement control, the Mohr-Coulomb closed form at every sliding step."""
+    case = table1.ede_case(element="quad4", axial_steps=300)
+    case["loading"].update(control="path", path_increment=4e-5)
+    s = run_case(parse_case(case), tmp_path)
+    assert s.result.completed, s.result.message
+    h, p = read_csv(tmp_path / "history.csv"), read_csv(tmp_path / "points.csv")
+    assert (h["control"] == "path").sum() > 100 and np.all(np.diff(h["u_axial"][h["control"] == "path"]) > 0)
+    sliding = h["n_plastic"] > 0
+    expected = [analytic.mohr_coulomb_force(P, p["angle"][0], c, tp, W)
+                for c, tp in zip(h["c"][sliding], h["tan_phi"][sliding])]
+    np.testing.assert_allclose(h["F_axial"][sliding], expected, rtol=1e-8)
+    ref, _, _, _ = ede_runs["q4"]
+    u = np.linspace(1.5e-3, 1.1e-2, 30)
+    np.testing.assert_allclose(np.interp(u, h["u_axial"], h["F_axial"]), np.interp(u, ref["u_axial"], ref["F_axial"]),
+                               rtol=5e-3)

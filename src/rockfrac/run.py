@@ -132,7 +132,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                            force_scale=1e-6 * case.bulk.E * case.mesh.width)
     stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
-    peak = {"F": -np.inf, "iters": 0}
+    peak = {"F": -np.inf, "iters": 0, "onsets": 0}
     stop_frac = case.loading.stop_below_peak_fraction
 
     def on_step(info: StepInfo) -> None:
@@ -145,6 +145,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
         peak["iters"] += info.newton.iterations
         log(f"step {info.step} [{info.stage}] lf={info.load_factor:.6f} u={row['u_axial']:.6e} "
             f"F={row['F_axial']:.6e} iterations={info.newton.iterations}")
+        if built.embedded is not None:
+            for onset in built.embedded.onsets[peak["onsets"]:]:
+                log(f"  bifurcation at step {info.step}: {onset.describe()}")
+            peak["onsets"] = len(built.embedded.onsets)
         if progress is not None:
             progress(row)
         if info.stage.startswith("axial"):

@@ -144,7 +144,8 @@ def build(case: Case, path: str = "<case>") -> Built:
         held += [3 * sets["back"] + 2, 3 * sets["front"] + 2]
     dirichlet = np.unique(np.concatenate(held))
     model = Model(mesh.n_nodes, groups, dirichlet, dim=dim)
-    stages = _stages(case, mesh, model, top_y, cohesive)
+    stages = _stages(case, mesh, model, top_y, cohesive if cohesive is not None else
+                     (bulk if isinstance(bulk, EmbeddedDruckerPrager) else None))
     thickness = case.mesh.resolved().thickness if dim == 3 else 1.0
     return Built(case, mesh, model, stages, top_y, thickness, bulk, cohesive)
 
@@ -167,7 +168,11 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, cohesive) -
     return stages
 
 
-def _path(load, cohesive) -> PathSpec | None:
-    if load.control is not Control.path or cohesive is None:
+def _path(load, surface) -> PathSpec | None:
+    """Path following on the discontinuity's jump: CSE node pairs, or the embedded cells' zeta."""
+    if load.control is not Control.path:
         return None
-    return PathSpec(cohesive.jump_measure, load.path_increment, cohesive.any_plastic, load.max_steps)
+    if surface is None:  # the schema allows path control only with a crack or [embedded]
+        raise CaseError("[loading] control = 'path' needs a cohesive crack or an [embedded] section")
+    active = surface.any_sliding if isinstance(surface, EmbeddedDruckerPrager) else surface.any_plastic
+    return PathSpec(surface.jump_measure, load.path_increment, active, load.max_steps)

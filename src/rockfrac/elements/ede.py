@@ -33,6 +33,22 @@ class Onset:
     det_ratio: float
     c_p: float
     conjugate_band_angle: float
+    normals: np.ndarray  # every local minimum of det A(n) / det A^e(n) (the conjugate pair first)
+    slips: np.ndarray  # their slip directions (null vectors of A), m . n >= 0
+
+    def describe(self) -> str:
+        """One log line: where, which band, the conjugates and their slips."""
+        pairs = "; ".join(f"n = ({n[0]:+.5f}, {n[1]:+.5f}, {n[2]:+.5f}) band {np.degrees(b):+.4f} deg, "
+                          f"m = ({m[0]:+.5f}, {m[1]:+.5f}, {m[2]:+.5f})"
+                          for n, b, m in zip(self.normals, [_band(n) for n in self.normals], self.slips))
+        return (f"cell {self.cell} localized: det A / det A^e = {self.det_ratio:.3e}; surface at "
+                f"{np.degrees(self.band_angle):+.4f} deg (c_p = {self.c_p:.1f} Pa, eq. 28); minima: {pairs}")
+
+
+def _band(n: np.ndarray) -> float:
+    """Band angle [rad] of the plane with normal n, in (-pi/2, pi/2]."""
+    a = math.atan2(n[1], n[0]) % math.pi - 0.5 * math.pi
+    return a + math.pi if a <= -0.5 * math.pi else a
 
 
 class EmbeddedDruckerPrager(DruckerPragerSolid):
@@ -52,6 +68,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self.e_state = np.zeros((n_el, K.N_E))
         self.e_trial = np.zeros_like(self.e_state)
         self.gradf = np.zeros((n_el, n_qp, 3))
+        self.active = np.zeros(cells.shape, dtype=bool)  # nodes on the + side of each cell's surface
         self.onsets: list[Onset] = []
         nd = self.dofs.shape[1]
         self._dz = np.zeros(n_el)  # jump increments of the current iterate
@@ -154,7 +171,8 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         c_p = self.localize_cell(e, n)
         s = self.e_state[e]
         band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))
-        self.onsets.append(Onset(e, s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other))
+        self.onsets.append(Onset(e, s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other,
+                                 np.asarray(loc.normals), np.asarray(loc.slips)))
 
     def localize_cell(self, e: int, normal: np.ndarray, c_p: float | None = None) -> float:
         """Cut cell e by the surface through its centroid with this normal; returns its c_p [Pa].
@@ -176,6 +194,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
             raise RuntimeError(f"cell {e}: the surface through the centroid leaves no node on one side")
         self.gradf[e] = 0.0
         self.gradf[e, :, :dim] = self.grads[e][:, active, :].sum(axis=1)
+        self.active[e] = active
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])
@@ -193,6 +212,46 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         s[K.E_SIGN] = 1.0 if q >= 0 else -1.0
         self.e_trial[e] = s
         return float(c_p)
+
+    # -- path following ------------------------------------------------------------------
+    def any_sliding(self) -> bool:
+        """True if a localized cell slid in the committed step."""
+        return bool(np.any((self.e_state[:, K.E_LOC] == 1.0) & (self.e_state[:, K.E_MODE] == 1.0)))
+
+    def slip_directions(self) -> np.ndarray:
+        """Unit slip directions m = s cos(psi) t + sin(psi) n (n_el, 3) of the committed state."""
+        st = self.e_state
+        law = self.surface_params
+        psi = np.array([strengths(g, 1.0, law)[2] for g in st[:, K.E_GAMMA]])
+        return (st[:, K.E_SIGN] * np.cos(psi))[:, None] * st[:, K.E_T:K.E_T + 3] + \
+            np.sin(psi)[:, None] * st[:, K.E_N:K.E_N + 3]
+
+    def jump_measure(self):
+        """Path-following measure for the next step: the mean over localized cells of the relative
+        displacement of their + side nodes against their - side nodes along the committed slip
+        direction m_ref [m] (a crack-mouth opening per cell), and its constant gradient.
+
+        Linear in u and independent of the condensed jump: the jump's own linearization,
+        -(h . dd)/k, is ill-conditioned wherever dr/d dzeta = k passes through zero during
+        softening. It grows with forward slip (the + side carries the slide) and shrinks on the
+        reversed branch, which a positive increment therefore never takes.
+        """
+        m_ref = self.slip_directions()[:, : self.dim]
+        loc = np.flatnonzero(self.e_state[:, K.E_LOC] == 1.0)
+        coef = np.zeros((self.dofs.shape[0], self.dofs.shape[1]))
+        for e in loc:  # once per step, over the localized cells only
+            act = self.active[e]
+            w = np.where(act, 1.0 / act.sum(), -1.0 / (~act).sum())  # + side mean minus - side mean
+            coef[e] = (w[:, None] * m_ref[e][None, :]).ravel() / loc.size
+
+        def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
+            grad = np.zeros(u.shape[0])
+            if loc.size == 0:
+                return 0.0, grad
+            np.add.at(grad, self.dofs[loc], coef[loc])
+            return float(grad @ u), grad
+
+        return measure
 
     # -- output ----------------------------------------------------------------------------
     def localized(self) -> np.ndarray:

@@ -51,7 +51,8 @@ E_Q = 14  # averaged shear traction q = <t.sigma.n> [Pa]
 E_P = 15  # averaged normal traction P = <n.sigma.n> [Pa]
 E_MODE = 16  # 0 rigid (constrained), 1 sliding (plastic) in the step
 E_SIGN = 17  # s, the slip sense along t
-N_E = 18
+E_MT = 18  # dJ / d dzeta of the iterate, slots 18..20 (path following)
+N_E = 21
 
 ST_OK = 0
 ST_NOT_UNIQUE = -2  # dr/d dzeta = 0: the jump does not enter the local equation
@@ -218,6 +219,8 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, sigma, 
     e_new[E_P] = pv
     e_new[E_MODE] = 1.0 if plastic else 0.0
     e_new[E_SIGN] = s
+    for k in range(3):
+        e_new[E_MT + k] = mt[k] if plastic else 0.0
     if not plastic:
         return status, 0.0, 0.0, dz
     return status, r, kz, dz

@@ -12,15 +12,14 @@ from __future__ import annotations
 
 import argparse
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 from rich.console import Console
 from rich.table import Table
 
-from rockfrac.case.schema import CaseError, format_errors
+from rockfrac.case.schema import CaseError, load_validated
 
 STRESS_KEYS = ("sxx", "syy", "szz", "sxy", "syz", "sxz")
 ONSET_TOL = 1.0e-8  # |min det A / det A^e| up to this is reported as the onset (round-off)
@@ -62,17 +61,7 @@ class MaterialFile(_Section):
 
 def load_material(path: str | Path) -> MaterialFile:
     """Read and validate a material file; CaseError names the file, the key and what is allowed."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise CaseError(f"{path}: no such file") from None
-    except tomllib.TOMLDecodeError as err:
-        raise CaseError(f"{path}: not valid TOML: {err}") from None
-    try:
-        return MaterialFile.model_validate(data)
-    except ValidationError as err:
-        raise CaseError(format_errors(str(path), err, MaterialFile)) from None
+    return load_validated(path, MaterialFile)
 
 
 def parse_stress(text: str) -> np.ndarray:

@@ -341,14 +341,7 @@ def parse_case(data: dict, path: str = "<case>") -> Case:
 
 def load_case(path: str | Path) -> Case:
     """Read and validate a case file."""
-    path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise CaseError(f"{path}: no such file") from None
-    except tomllib.TOMLDecodeError as err:
-        raise CaseError(f"{path}: not valid TOML: {err}") from None
-    return parse_case(data, str(path))
+    return parse_case(read_toml(path), str(path))
 
 
 class DriveLaw(TractionLaw):
@@ -364,16 +357,26 @@ class LawFile(_Section):
     law: DriveLaw
 
 
-def load_law(path: str | Path) -> LawFile:
-    """Read and validate a law file for ``rockfrac drive``."""
+def read_toml(path: str | Path) -> dict:
+    """The TOML document of a file; CaseError if it is missing or not TOML."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except FileNotFoundError:
         raise CaseError(f"{path}: no such file") from None
     except tomllib.TOMLDecodeError as err:
         raise CaseError(f"{path}: not valid TOML: {err}") from None
+
+
+def load_validated(path: str | Path, model: type[BaseModel]):
+    """Read a TOML file into a schema ``model``; CaseError names the file, the key, what is allowed."""
+    data = read_toml(path)
     try:
-        return LawFile.model_validate(data)
+        return model.model_validate(data)
     except ValidationError as err:
-        raise CaseError(format_errors(str(path), err, LawFile)) from None
+        raise CaseError(format_errors(str(path), err, model)) from None
+
+
+def load_law(path: str | Path) -> LawFile:
+    """Read and validate a law file for ``rockfrac drive``."""
+    return load_validated(path, LawFile)

@@ -33,9 +33,8 @@ import math
 import numba as nb
 import numpy as np
 
-from rockfrac.elements.plastic_solid import integrate_point, point_strain
+from rockfrac.elements.plastic_solid import dp_element, integrate_point, point_strain
 from rockfrac.fem.kinematics import b_matrix
-from rockfrac.laws import drucker_prager as dp
 from rockfrac.laws.drucker_prager_params import S_MODE
 from rockfrac.laws.mohr_coulomb_softening import gamma_of, strengths
 
@@ -239,11 +238,7 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
     step and this is the step's first iterate). r_out, k_out
     (n_el,), h_out (n_el, nd): the local residual r, dr/d dzeta and dr/dd for the next update.
     """
-    n_el, n_qp, n_nodes, dim = grads.shape
-    nd = n_nodes * dim
-    nv = 3 if dim == 2 else 6
-    idx = np.array([0, 1, 3]) if dim == 2 else np.arange(6)
-    for e in nb.prange(n_el):
+    for e in nb.prange(grads.shape[0]):
         r_out[e] = 0.0
         k_out[e] = 0.0
         if e_old[e, E_LOC] == 1.0:
@@ -254,17 +249,5 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
             status[e], r_out[e], k_out[e], dz[e] = st, r, kz, dzu
             continue
         e_new[e, :] = e_old[e]
-        b = np.empty((nv, nd))
-        cb = np.empty((nv, nd))
-        eps6 = np.empty(6)
-        c6 = np.empty((6, 6))
-        fe[e, :] = 0.0
-        ke[e, :, :] = 0.0
-        status[e] = ST_OK
-        for q in range(n_qp):
-            b_matrix(grads[e, q], b)
-            point_strain(b, ue[e], idx, eps6)
-            if dp.return_map(eps6, dp_old[e, q], dp_p, sigma[e, q], c6, dp_new[e, q]) < 0:
-                status[e] = ST_DP_FAIL
-                continue
-            integrate_point(b, wdet[e, q], sigma[e, q], c6, idx, fe[e], ke[e], cb)
+        st = dp_element(grads[e], wdet[e], ue[e], dp_old[e], dp_p, dp_new[e], sigma[e], fe[e], ke[e])
+        status[e] = ST_DP_FAIL if st < 0 else ST_OK

@@ -47,34 +47,41 @@ def point_strain(b, ue, idx, eps6):
         eps6[idx[k]] = s
 
 
-@nb.njit(cache=True, parallel=True)
-def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
-    """Drucker-Prager solids: return map at every Gauss point, element force and tangent blocks.
+@nb.njit(cache=True)
+def dp_element(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke):
+    """One Drucker-Prager cell: return map at its Gauss points, fe (nd,) [N] and ke (nd, nd).
 
-    grads (n_el, n_qp, n_nodes, dim), wdet (n_el, n_qp), ue (n_el, nd) element dofs [m];
-    s_old/s_new (n_el, n_qp, N_STATE); sigma (n_el, n_qp, 6) [Pa]; fe (n_el, nd) [N];
-    ke (n_el, nd, nd); status (n_el,) the smallest point status (< 0: a return failed).
+    grads (n_qp, n_nodes, dim), wdet (n_qp,), ue (nd,) [m]; s_old/s_new (n_qp, N_STATE);
+    sigma (n_qp, 6) [Pa]. Returns 0, or the (negative) status of a failed return.
     """
-    n_el, n_qp, n_nodes, dim = grads.shape
+    n_qp, n_nodes, dim = grads.shape
     nd = n_nodes * dim
     nv = 3 if dim == 2 else 6
     idx = np.array([0, 1, 3]) if dim == 2 else np.arange(6)
-    for e in nb.prange(n_el):
-        b = np.empty((nv, nd))
-        cb = np.empty((nv, nd))
-        eps6 = np.empty(6)
-        c6 = np.empty((6, 6))
-        fe[e, :] = 0.0
-        ke[e, :, :] = 0.0
-        status[e] = 0
-        for q in range(n_qp):
-            b_matrix(grads[e, q], b)
-            point_strain(b, ue[e], idx, eps6)
-            st = dp.return_map(eps6, s_old[e, q], p, sigma[e, q], c6, s_new[e, q])
-            if st < 0:
-                status[e] = st
-                continue
-            integrate_point(b, wdet[e, q], sigma[e, q], c6, idx, fe[e], ke[e], cb)
+    b = np.empty((nv, nd))
+    cb = np.empty((nv, nd))
+    eps6 = np.empty(6)
+    c6 = np.empty((6, 6))
+    fe[:] = 0.0
+    ke[:, :] = 0.0
+    status = 0
+    for q in range(n_qp):
+        b_matrix(grads[q], b)
+        point_strain(b, ue, idx, eps6)
+        st = dp.return_map(eps6, s_old[q], p, sigma[q], c6, s_new[q])
+        if st < 0:
+            status = st
+            continue
+        integrate_point(b, wdet[q], sigma[q], c6, idx, fe, ke, cb)
+    return status
+
+
+@nb.njit(cache=True, parallel=True)
+def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
+    """Drucker-Prager solids: :func:`dp_element` over all cells (n_el leading axis on every array);
+    status (n_el,) < 0 where a return failed."""
+    for e in nb.prange(grads.shape[0]):
+        status[e] = dp_element(grads[e], wdet[e], ue[e], s_old[e], p, s_new[e], sigma[e], fe[e], ke[e])
 
 
 class DruckerPragerSolid(SolidGeometry):

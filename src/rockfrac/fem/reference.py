@@ -1,8 +1,9 @@
-"""Reference elements: bilinear quadrilateral (Q4, 2x2 Gauss) and trilinear hexahedron (Hex8, 2x2x2).
+"""Reference elements: linear triangle (T3, 1 point), bilinear quadrilateral (Q4, 2x2 Gauss) and
+trilinear hexahedron (Hex8, 2x2x2).
 
-Node orders follow VTK: Q4 counter-clockwise from (-1, -1); Hex8 the bottom face (zeta = -1)
-counter-clockwise from (-1, -1, -1), then the top face above it. Shape functions
-N_a = prod_i (1 + xi_a,i xi_i) / 2^dim.
+Node orders follow VTK: T3 counter-clockwise from (0, 0); Q4 counter-clockwise from (-1, -1);
+Hex8 the bottom face (zeta = -1) counter-clockwise from (-1, -1, -1), then the top face above it.
+Tensor-product shape functions N_a = prod_i (1 + xi_a,i xi_i) / 2^dim; T3: 1 - xi - eta, xi, eta.
 """
 
 from __future__ import annotations
@@ -34,11 +35,15 @@ class ReferenceElement:
     def shape(self, xi: np.ndarray) -> np.ndarray:
         """N_a at points xi (n, dim): (n, n_nodes)."""
         xi = np.atleast_2d(xi)
+        if self.name == "tri3":
+            return np.column_stack([1.0 - xi[:, 0] - xi[:, 1], xi[:, 0], xi[:, 1]])
         return np.prod(0.5 * (1.0 + xi[:, None, :] * self.nodes[None, :, :]), axis=2)
 
     def shape_gradients(self, xi: np.ndarray) -> np.ndarray:
         """dN_a/dxi_j at points xi (n, dim): (n, n_nodes, dim)."""
         xi = np.atleast_2d(xi)
+        if self.name == "tri3":
+            return np.broadcast_to(np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]]), (xi.shape[0], 3, 2)).copy()
         f = 0.5 * (1.0 + xi[:, None, :] * self.nodes[None, :, :])  # (n, a, dim)
         out = np.empty(f.shape)
         for j in range(self.dim):
@@ -62,4 +67,11 @@ HEX8 = ReferenceElement(
     weights=np.ones(8),
 )
 
-ELEMENTS = {"quad4": QUAD4, "hex8": HEX8}
+TRI3 = ReferenceElement(
+    "tri3",
+    nodes=np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]),
+    points=np.array([[1.0 / 3.0, 1.0 / 3.0]]),
+    weights=np.array([0.5]),
+)
+
+ELEMENTS = {"tri3": TRI3, "quad4": QUAD4, "hex8": HEX8}

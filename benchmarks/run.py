@@ -124,7 +124,7 @@ def newton_options(case):
 
     sol = case.solver
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
-                           force_scale=1e-6 * case.bulk.E * case.mesh.width)
+                           force_scale=1e-6 * max(m.E for m in case.material_list) * case.mesh.width)
     return newton, SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
 
 

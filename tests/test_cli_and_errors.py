@@ -29,7 +29,8 @@ GOOD = (EXAMPLES / "paper" / "cse_rp.toml").read_text()
 def test_paper_cases_validate(name):
     case = load_case(EXAMPLES / "paper" / f"{name}.toml")
     assert case.bulk.E == 1.5e7 and case.loading.confinement == 2e4
-    assert case.cohesive.c_p == 9053.0 and case.cohesive.alpha_c == (2e2 if name.endswith("1e8") else 2e3)
+    coh = case.cohesive_sets[0]
+    assert coh.c_p == 9053.0 and coh.alpha_c == (2e2 if name.endswith("1e8") else 2e3)
 
 
 @pytest.mark.parametrize(
@@ -38,7 +39,7 @@ def test_paper_cases_validate(name):
         (("nu = 0.3", "nu = 0.5"), "[bulk] nu: Input should be less than 0.5"),
         (("c_p = 9053.0", "c_p = -1.0"), "[cohesive] c_p: Input should be greater than or equal to 0"),
         (("GfI = 1e4", "GfI = 1e4\nGfIII = 3"), "[cohesive] GfIII: unknown key; allowed keys: GfI"),
-        (("[bulk]\nE = 1.5e7\nnu = 0.3", ""), "missing section [bulk]"),
+        (("[bulk]\nE = 1.5e7\nnu = 0.3", ""), "give either [bulk] (one material everywhere) or [[materials]]"),
         (('form = "rp"', 'form = "rp"\nkn = 1e9'), "kn only apply to form = 'ep'"),
         (('form = "rp"', 'form = "ep"'), "form = 'ep' needs kn, kt"),
         (('form = "rp"', 'form = "xp"'), "[cohesive] form: Input should be 'ep' or 'rp'"),
@@ -82,9 +83,9 @@ def test_run_writes_history_points_resolved_case_and_log(tmp_path):
     from rockfrac.case.build import law_of_section
 
     bulk_r = 1.5e7 / np.sqrt(0.04 * 0.08 / 2)
-    law_r = 10 * law_of_section(resolved.cohesive).softening_modulus()
+    law_r = 10 * law_of_section(resolved.cohesive_sets[0]).softening_modulus()
     assert law_r > bulk_r  # Table 1 softens fast enough that the law sets the default
-    assert resolved.cohesive.augmentation == pytest.approx(law_r)
+    assert resolved.cohesive_sets[0].augmentation == pytest.approx(law_r)
     assert "residual" in (tmp_path / "o" / "run.log").read_text()
 
 

@@ -27,7 +27,7 @@ def test_traced_path_follows_the_closed_form_through_the_snap_back(tmp_path):
     errors = []
     for inc in (4e-5, 2e-5):
         case, h = traced(tmp_path, inc)
-        c, b = case.cohesive, case.bulk
+        c, b = case.cohesive_sets[0], case.bulk
         e1 = b.E / (1 - b.nu**2)
         big_l = case.mesh.height
         sigma = -h["F_axial"] / case.mesh.width  # tension

@@ -39,13 +39,18 @@ PENALTY_ACCURACY = 0.01  # rockfrac run warns when an EP penalty's artificial co
 def case_warnings(built: Built) -> list[str]:
     """Things a user should know before trusting the run (not errors: the run goes ahead)."""
     out = []
-    coh = built.case.cohesive
-    if coh is not None and coh.form.value == "ep":
-        from rockfrac.analytic import plane_strain_modulus
-        from rockfrac.studies.penalty import penalty_rule
+    from rockfrac.analytic import plane_strain_modulus
+    from rockfrac.case.build import mean_cell_size
+    from rockfrac.studies.penalty import penalty_rule
 
-        e_plane = plane_strain_modulus(built.case.bulk.E, built.case.bulk.nu)
-        length = float(np.ptp(built.mesh.nodes[:, 1]))  # the bulk's length along the load
+    for coh, group in zip(built.case.cohesive_sets, built.cohesives):
+        if coh.form.value != "ep":
+            continue
+        soft_bulk = min(built.case.material_list, key=lambda m: m.E)
+        e_plane = plane_strain_modulus(soft_bulk.E, soft_bulk.nu)
+        # the bulk's length along the load between surfaces: the specimen for its one crack, a cell
+        # for surfaces on many edges
+        length = float(np.ptp(built.mesh.nodes[:, 1])) if coh.where.value == "crack" else mean_cell_size(built.mesh)
         k = min(coh.kn, coh.kt)
         need = penalty_rule(e_plane, length, PENALTY_ACCURACY)
         if k < need:
@@ -54,7 +59,7 @@ def case_warnings(built: Built) -> list[str]:
                        f"so the penalty may add up to {100 * x:.3g} % of the bulk's compliance (pre-peak stiffness "
                        f"up to {100 * x / (1 + x):.3g} % too low); k >= {need:.3g} Pa/m keeps the error below "
                        f"{100 * PENALTY_ACCURACY:g} % (rockfrac penalty-study)")
-        soft = built.cohesive.law.softening_modulus()
+        soft = group.law.softening_modulus()
         if k < soft:
             out.append(f"EP CSE penalty {k:.3g} Pa/m is below the law's softening slope (~{soft:.3g} Pa/m): the "
                        "traction law may have no unique return (the material point snaps back); raise kn, kt or "
@@ -63,18 +68,26 @@ def case_warnings(built: Built) -> list[str]:
 
 
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
-    """Per-point quantities of the discontinuity (CSE node pairs or localized EDE cells), state named."""
-    if built.embedded is not None:
-        rec = built.embedded.records()
+    """Per-point quantities of the discontinuities (CSE node pairs, localized EDE cells), state named,
+    concatenated over the surface groups (column set: the cohesive set or the EDE region)."""
+    parts = []
+    for k, g in enumerate(built.embeddeds):
+        rec = g.records()
         rec["state"] = np.where(rec["mode"] == 1.0, "plastic", "constrained")
-        rec["point"] = np.arange(rec["cell"].shape[0])
-        return rec
-    if built.cohesive is None:
+        rec["cell"] = g.cell_ids[rec["cell"]] if hasattr(g, "cell_ids") else rec["cell"]
+        rec["set"] = np.full(rec["cell"].shape[0], g.region if hasattr(g, "region") else str(k))
+        parts.append(rec)
+    for k, (g, section) in enumerate(zip(built.cohesives, built.case.cohesive_sets)):
+        rec = g.records(u)
+        rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
+        rigid = section.form.value == "rp"
+        rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if rigid else "elastic")
+        rec["set"] = np.full(rec["x"].shape[0], f"cohesive {k + 1}")
+        parts.append(rec)
+    if not parts:
         return None
-    rec = built.cohesive.records(u)
-    rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
-    rigid = built.case.cohesive.form.value == "rp"
-    rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if rigid else "elastic")
+    keys = set.intersection(*(set(p) for p in parts))
+    rec = {k: np.concatenate([p[k] for p in parts]) for k in keys}
     rec["point"] = np.arange(rec["x"].shape[0])
     return rec
 
@@ -99,11 +112,12 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
         row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
     elif rec is not None:
         row["n_plastic"] = 0
-    if built.embedded is not None:
-        row["det_ratio"] = built.embedded.last_event
-        row["n_localized"] = int(built.embedded.localized().size)
-    if hasattr(built.bulk, "plastic_fraction"):
-        row["bulk_plastic"] = built.bulk.plastic_fraction()
+    if built.embeddeds:
+        row["det_ratio"] = min(g.last_event for g in built.embeddeds)
+        row["n_localized"] = int(sum(g.localized().size for g in built.embeddeds))
+    fractions = [(g.plastic_fraction(), g.wdet.size) for g in built.bulks if hasattr(g, "plastic_fraction")]
+    if fractions:
+        row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
     return row
 
 
@@ -118,7 +132,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     resolved = resolve(case)
     (out / "case.toml").write_text(tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True)))
     history = CsvWriter(out / "history.csv", HISTORY_COLUMNS)
-    has_points = built.cohesive is not None or built.embedded is not None
+    has_points = bool(built.cohesives or built.embeddeds)
     points = CsvWriter(out / "points.csv", POINT_COLUMNS) if case.output.points and has_points else None
     log_fh = open(out / "run.log", "w")
 
@@ -130,7 +144,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
         log(f"warning: {w}")
     sol = case.solver
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
-                           force_scale=1e-6 * case.bulk.E * case.mesh.width)
+                           force_scale=1e-6 * max(m.E for m in case.material_list) * case.mesh.width)
     stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
     peak = {"F": -np.inf, "iters": 0, "onsets": 0}
     stop_frac = case.loading.stop_below_peak_fraction
@@ -145,10 +159,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
         peak["iters"] += info.newton.iterations
         log(f"step {info.step} [{info.stage}] lf={info.load_factor:.6f} u={row['u_axial']:.6e} "
             f"F={row['F_axial']:.6e} iterations={info.newton.iterations}")
-        if built.embedded is not None:
-            for onset in built.embedded.onsets[peak["onsets"]:]:
-                log(f"  bifurcation at step {info.step}: {onset.describe()}")
-            peak["onsets"] = len(built.embedded.onsets)
+        onsets = [o for g in built.embeddeds for o in g.onsets]
+        for onset in onsets[peak["onsets"]:]:
+            log(f"  bifurcation at step {info.step}: {onset.describe()}")
+        peak["onsets"] = len(onsets)
         if progress is not None:
             progress(row)
         if info.stage.startswith("axial"):

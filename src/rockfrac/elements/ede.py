@@ -55,10 +55,13 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
-                 surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True):
+                 surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none"):
         super().__init__(nodes, cells, ref, law)
         if band not in ("positive", "negative"):
             raise ValueError(f"band must be 'positive' or 'negative', got {band!r}")
+        if tracking not in ("none", "local"):
+            raise ValueError(f"tracking must be 'none' or 'local', got {tracking!r}")
+        self.tracking = tracking
         self.surface = surface
         self.band = band
         self.plane_strain = plane_strain

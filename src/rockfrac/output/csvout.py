@@ -13,7 +13,7 @@ HISTORY_COLUMNS = [
     "jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic", "det_ratio", "n_localized", "bulk_plastic",
 ]
 POINT_COLUMNS = [
-    "step", "point", "cell", "x", "y", "angle", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n",
+    "step", "point", "set", "cell", "x", "y", "angle", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n",
     "jump_p_norm", "eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi", "gamma", "zeta", "c_p", "state",
 ]
 

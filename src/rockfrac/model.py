@@ -56,6 +56,9 @@ class Model:
                 scatter_matrix(data, slots, g.ke)
         self._const_data = data
         self._const_matrix = self.pattern.matrix(data)
+        redundant = [g.redundant_extras(self.dirichlet) for g in self.groups if hasattr(g, "redundant_extras")]
+        if redundant:
+            self.dirichlet = np.unique(np.concatenate([self.dirichlet, *redundant])).astype(np.int64)
         self.free = np.setdiff1d(np.arange(n), self.dirichlet)
         self._bc_hit, self._bc_diag = self.pattern.positions(self.dirichlet)
 

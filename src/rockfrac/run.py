@@ -43,7 +43,8 @@ def case_warnings(built: Built) -> list[str]:
     from rockfrac.case.build import mean_cell_size
     from rockfrac.studies.penalty import penalty_rule
 
-    for coh, group in zip(built.case.cohesive_sets, built.cohesives):
+    for group in built.cohesives:
+        coh = group.section
         if coh.form.value != "ep":
             continue
         soft_bulk = min(built.case.material_list, key=lambda m: m.E)
@@ -77,12 +78,12 @@ def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
         rec["cell"] = g.cell_ids[rec["cell"]] if hasattr(g, "cell_ids") else rec["cell"]
         rec["set"] = np.full(rec["cell"].shape[0], g.region if hasattr(g, "region") else str(k))
         parts.append(rec)
-    for k, (g, section) in enumerate(zip(built.cohesives, built.case.cohesive_sets)):
+    for g in built.cohesives:
         rec = g.records(u)
         rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
-        rigid = section.form.value == "rp"
+        rigid = g.section.form.value == "rp"
         rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if rigid else "elastic")
-        rec["set"] = np.full(rec["x"].shape[0], f"cohesive {k + 1}")
+        rec["set"] = np.full(rec["x"].shape[0], g.set_name)
         parts.append(rec)
     if not parts:
         return None

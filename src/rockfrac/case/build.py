@@ -207,11 +207,10 @@ def _insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.n
         if idx.size == 0:
             raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal edge of the mesh")
         chosen.append(idx)
-        m = cells[idx, 0].copy()
         if c.where is Placement.between:  # the first region is the minus side
-            in_a = np.isin(cells[idx, 0], mesh.regions[c.regions[0]])
-            m = np.where(in_a, cells[idx, 0], cells[idx, 1])
-        minus.append(m)
+            minus.append(itf.minus_side(mesh, idx, c.regions[0]))
+        else:
+            minus.append(cells[idx, 0])
     flat = np.concatenate(chosen)
     if np.unique(flat).size != flat.size:
         raise CaseError(f"{path}: [cohesive]: two cohesive sets share edges; each edge can carry one surface")
@@ -219,6 +218,26 @@ def _insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.n
     split = itf.insert_interfaces(mesh, flat, minus_cells=np.concatenate(minus))
     bounds = np.cumsum([0] + [c.size for c in chosen]) + n0
     return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
+    """The CSE group of a cohesive set: EP, or RP with augmented multipliers.
+
+    RP at junctions (a node split into k >= 3 copies): the multipliers of the pairs around it are
+    statically indeterminate (circulating forces); they are taken with the least circulation, see
+    :class:`rockfrac.elements.cse_groups.CohesiveRP`.
+    """
+    law = law_of_section(section)
+    if section.form is CohesiveForm.ep:
+        group = CohesiveEP(points, law)
+    else:
+        from rockfrac.mesh.interfaces import tied_nodes
+
+        root = tied_nodes(mesh)
+        copies = np.bincount(root, minlength=mesh.n_nodes)
+        group = CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3)
+    group.section, group.set_name = section, name
+    return [group]
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
@@ -255,11 +274,9 @@ def build(case: Case, path: str = "<case>") -> Built:
     except ValueError as err:
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives = []
-    for section, cells in zip(case.cohesive_sets, set_cells):
-        points = interface_points(mesh.nodes, mesh.interfaces[cells])
-        law = law_of_section(section)
-        cohesives.append(CohesiveEP(points, law) if section.form is CohesiveForm.ep
-                         else CohesiveRP(points, law, section.augmentation))
+    for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
+        cohesives += cohesive_groups(section, interface_points(mesh.nodes, mesh.interfaces[cells]), mesh,
+                                     f"cohesive {k + 1}")
     load = case.loading
     _require([load.support, load.pin, load.axial], mesh.node_sets, "node group",
              "[loading] support, pin, axial", path)

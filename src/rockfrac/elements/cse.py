@@ -79,7 +79,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
 
 
 @nb.njit(cache=True, parallel=True)
-def rp_points(frame, weight, djump, lam, aug, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke, status,
+def rp_points(frame, weight, djump, lam, aug, eps, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke, status,
               switched):
     """RP CSE at all points: augmented Lagrangian (paper eq. 32-33) with the law's return map.
 
@@ -91,7 +91,8 @@ def rp_points(frame, weight, djump, lam, aug, s_old, d_old, mode_prev, p, s_new,
     in every iteration). The multiplier rows w (T - lambda) = w r (h - Delta[[u^p]]) enforce
     [[u]]_{n+1} - [[u]]_n = Delta[[u^p]] exactly at convergence, where T = lambda: the converged
     state solves eq. (34) and the surface is rigid until F(lambda) = 0.
-    mode_prev: mode of each point in the previous iterate (a change counts as a switch).
+    mode_prev: mode of each point in the previous iterate (a change counts as a switch). eps (n,):
+    perturbed-Lagrangian weight of constrained junction pairs (0 elsewhere), see CohesiveRP.
     """
     comp = np.empty(2)
     comp[0] = 1.0 / aug
@@ -127,3 +128,8 @@ def rp_points(frame, weight, djump, lam, aug, s_old, d_old, mode_prev, p, s_new,
                 ki[4 + a, b] = -kab
                 ki[4 + a, 2 + b] = kab
                 ki[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
+        if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
+            for a in range(2):  # least circulation of junction multipliers (CohesiveRP)
+                lam_n = r[0, a] * s_old[i, S_TT] + r[1, a] * s_old[i, S_TN]
+                fi[4 + a] -= eps[i] * w * (lam[i, a] - lam_n)
+                ki[4 + a, 4 + a] -= eps[i] * w

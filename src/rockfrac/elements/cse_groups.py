@@ -143,11 +143,22 @@ class CohesiveRP(_CohesiveGroup):
     Owns two multiplier dofs (global-frame traction) per point, numbered from ``offset``; see
     :func:`rockfrac.elements.cse.rp_points` for the augmented return and why its converged
     state solves eq. (34).
+
+    Junctions: around a node split into k >= 3 copies the pairs' jumps sum to zero, so their
+    multipliers are statically indeterminate (forces may circulate round the node: a singular
+    system). At such pairs, while constrained, the multiplier row gets a perturbed-Lagrangian term
+    JUNCTION_EPS w (lambda - lambda_n): the circulating part takes its least value (for a uniform
+    stress that is exactly w sigma . n, the physical traction: the normals round a node sum to
+    zero) at a constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m.
     """
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float):
+    JUNCTION_EPS = 1e-8
+
+    def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float,
+                 junction: np.ndarray | None = None):
         super().__init__(points, law)
         self.aug = float(augmentation)
+        self.eps = np.where(junction, self.JUNCTION_EPS, 0.0) if junction is not None else np.zeros(points.n)
         self.n_extra = 2 * points.n
         self.offset = -1
 
@@ -156,6 +167,21 @@ class CohesiveRP(_CohesiveGroup):
         self.offset = offset
         lam = offset + np.arange(2 * self.points.n).reshape(-1, 2)
         self.dofs = np.hstack([self.points.dofs, lam])
+
+    def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
+        """Multiplier dofs whose constraint the Dirichlet conditions already impose: both nodes of the
+        pair held in that (global) component, e.g. the copies of a split node on a supported edge.
+        Their rows would be empty (a singular system); they are prescribed to zero instead, and the
+        supports take that traction component."""
+        held = np.zeros(int(max(dirichlet.max(initial=0), 2 * max(self.points.plus.max(initial=0),
+                                                                      self.points.minus.max(initial=0)) + 1)) + 2,
+                        dtype=bool)
+        held[dirichlet] = True
+        out = []
+        for a in range(2):
+            both = held[2 * self.points.minus + a] & held[2 * self.points.plus + a]
+            out.append(self.offset + 2 * np.flatnonzero(both) + a)
+        return np.concatenate(out).astype(np.int64)
 
     def multipliers(self, u: np.ndarray) -> np.ndarray:
         """Global-frame multipliers (n_pts, 2) [Pa]."""
@@ -169,7 +195,7 @@ class CohesiveRP(_CohesiveGroup):
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, S_MODE].copy()
-        cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.state,
+        cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.eps, self.state,
                       self.tangent, mode_prev, self.p, self.trial, self.trial_tangent, fe, ke,
                       self.status, switched)
         bad = np.flatnonzero(self.status < 0)

@@ -72,6 +72,11 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self.e_trial = np.zeros_like(self.e_state)
         self.gradf = np.zeros((n_el, n_qp, 3))
         self.active = np.zeros(cells.shape, dtype=bool)  # nodes on the + side of each cell's surface
+        self.anchor = np.zeros((n_el, 3))  # a point of each cut cell's surface [m]
+        self.segments = np.full((n_el, 2, 2), np.nan)  # 2D: the surface clipped to its cell [m]
+        self.nodes = nodes
+        if tracking == "local" and self.dim != 2:
+            raise ValueError("tracking = 'local' follows crack paths in 2D meshes only")
         self.onsets: list[Onset] = []
         nd = self.dofs.shape[1]
         self._dz = np.zeros(n_el)  # jump increments of the current iterate
@@ -152,37 +157,104 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
     onset_tol = 1e-4  # localize when min det A / det A^e <= this (the stepping lands within it)
 
     def _localize(self) -> float:
-        """Localize every cell whose committed state has det A / det A^e <= onset_tol; returns the
-        min det ratio over the cells that may still localize (1 if none)."""
+        """Localize the cells whose committed state has det A / det A^e <= onset_tol; returns the min
+        det ratio over the cells that may still localize (1 if none).
+
+        tracking = "none": each such cell is cut through its centroid. "local" (2D): a cell next to a
+        cut cell whose surface ends on their shared edge continues it from that point (the crack tip),
+        with the conjugate normal closest to the neighbour's; a cell with no cut neighbour starts a
+        new crack through its centroid; a cell beside a crack but not at its tip waits (it stays a
+        Drucker-Prager cell) until the crack reaches it.
+        """
         best, where = self._scan(self.state, self.sigma)
-        for e, (ratio, q, loc) in where.items():
-            if ratio <= self.onset_tol:
-                self._open(e, ratio, loc)
+        ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
+        if self.tracking == "none":
+            for ratio, e in ready:
+                self._open(e, ratio, where[e][2])
+            return best
+        pending = [e for _, e in ready]
+        progress = True
+        while pending and progress:  # a newly cut cell may give the next one its tip
+            progress = False
+            for e in list(pending):
+                tip = self._tip(e)
+                if tip is None and self._cut_neighbours(e):
+                    continue  # beside a crack, not at its tip: wait
+                self._open(e, where[e][0], where[e][2], tip)
+                pending.remove(e)
+                progress = True
         return best
 
-    def _choose(self, loc) -> tuple[np.ndarray, float]:
-        """The normal of the requested conjugate band (band angle > 0 or < 0) and the other's angle."""
+    # -- crack path (2D) ---------------------------------------------------------------------
+    def _edges(self) -> dict[int, list[tuple[int, int, int]]]:
+        """Cell -> [(neighbour, node a, node b)] over shared edges (2D), built once."""
+        if getattr(self, "_nbr", None) is None:
+            cells = self.cells
+            n = cells.shape[1]
+            pairs = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
+            owner = np.repeat(np.arange(cells.shape[0]), n)
+            key = np.sort(pairs, axis=1)
+            order = np.lexsort((key[:, 1], key[:, 0]))
+            k = key[order]
+            same = np.flatnonzero(np.all(k[1:] == k[:-1], axis=1))
+            nbr: dict[int, list[tuple[int, int, int]]] = {}
+            for i in same:
+                c1, c2 = owner[order[i]], owner[order[i + 1]]
+                a, b = k[i]
+                nbr.setdefault(int(c1), []).append((int(c2), int(a), int(b)))
+                nbr.setdefault(int(c2), []).append((int(c1), int(a), int(b)))
+            self._nbr = nbr
+        return self._nbr
+
+    def _cut_neighbours(self, e: int) -> list[int]:
+        return [c for c, _, _ in self._edges().get(e, []) if self.e_state[c, K.E_LOC] == 1.0]
+
+    def _tip(self, e: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """(point, neighbour normal) where a cut neighbour's surface ends on the edge shared with e."""
+        for c, a, b in self._edges().get(e, []):
+            if self.e_state[c, K.E_LOC] != 1.0:
+                continue
+            xa, xb = self.nodes[a, :2], self.nodes[b, :2]
+            size = np.linalg.norm(xb - xa)
+            for p in self.segments[c]:
+                # p on segment ab: collinear and between the ends
+                cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
+                along = np.dot(p - xa, xb - xa) / size**2
+                if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
+                    return p.copy(), self.e_state[c, K.E_N:K.E_N + 3].copy()
+        return None
+
+    def _choose(self, loc, reference: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+        """The normal of the requested conjugate band (band angle > 0 or < 0), or the one closest to a
+        reference normal (a crack being continued), and the other's band angle."""
         angles = loc.band_angles
         ranked = sorted(range(len(angles)), key=lambda k: loc.ratios[k])[:2]
-        want = [k for k in ranked if (angles[k] > 0) == (self.band == "positive")]
-        k = want[0] if want else ranked[0]
+        if reference is not None:
+            k = max(ranked, key=lambda j: abs(float(np.dot(loc.normals[j], reference))))
+        else:
+            want = [k for k in ranked if (angles[k] > 0) == (self.band == "positive")]
+            k = want[0] if want else ranked[0]
         other = [j for j in ranked if j != k]
         return loc.normals[k], (float(angles[other[0]]) if other else math.nan)
 
-    def _open(self, e: int, ratio: float, loc) -> None:
-        n, other = self._choose(loc)
-        c_p = self.localize_cell(e, n)
+    def _open(self, e: int, ratio: float, loc, tip=None) -> None:
+        point, reference = tip if tip is not None else (None, None)
+        n, other = self._choose(loc, reference)
+        c_p = self.localize_cell(e, n, point=point)
         s = self.e_state[e]
         band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))
         self.onsets.append(Onset(e, s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other,
                                  np.asarray(loc.normals), np.asarray(loc.slips)))
 
-    def localize_cell(self, e: int, normal: np.ndarray, c_p: float | None = None) -> float:
-        """Cut cell e by the surface through its centroid with this normal; returns its c_p [Pa].
+    def localize_cell(self, e: int, normal: np.ndarray, c_p: float | None = None,
+                      point: np.ndarray | None = None) -> float:
+        """Cut cell e by the surface with this normal through ``point`` (default: the centroid);
+        returns its c_p [Pa].
 
         n is signed to point up (the + side above, like the CSE's), t = (n_y, -n_x); active nodes
-        (X_a - X_c) . n > 0; c_p from eq. (28) on the committed stress unless given (or set in the
-        law). The cell's bulk is frozen from here on.
+        (X_a - X_p) . n > 0; c_p from eq. (28) on the committed stress unless given (or set in the
+        law). The cell's bulk is frozen from here on; its segment (the surface clipped to the cell,
+        2D) is kept for the crack path and the output.
         """
         n = np.zeros(3)
         n[: len(normal)] = normal
@@ -191,13 +263,18 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
             n = -n
         t = np.array([n[1], -n[0], 0.0])  # (t, n) right-handed in the x-y plane
         dim = self.dim
-        xc = self.x[e].mean(axis=0)
+        xc = self.x[e].mean(axis=0) if point is None else np.asarray(point, dtype=float)[:dim]
         active = (self.x[e] - xc) @ n[:dim] > 0.0
         if active.all() or not active.any():
             raise RuntimeError(f"cell {e}: the surface through the centroid leaves no node on one side")
         self.gradf[e] = 0.0
         self.gradf[e, :, :dim] = self.grads[e][:, active, :].sum(axis=1)
         self.active[e] = active
+        self.anchor[e, :dim] = xc
+        if dim == 2:
+            from rockfrac.output.plots import surface_segment
+
+            self.segments[e] = surface_segment(self.x[e], n[:2], xc)
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])

@@ -46,7 +46,9 @@ def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
     """Merge the node pairs of interface cells (m0, m1, p0, p1) into nodal integration points.
 
     A pair shared by two cells gets the sum of their half-lengths as weight and the
-    length-weighted mean of their normals (exactly the cell normal on a straight crack).
+    length-weighted mean of their normals (exactly the cell normal on a straight crack). A pair
+    whose minus and plus node are the same node (the tip of a crack ending inside the mesh: the
+    node is not split) has no jump and is left out.
     """
     if cells.shape[0] == 0:
         z = np.zeros(0, dtype=np.int64)
@@ -60,6 +62,8 @@ def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
     half = np.concatenate([0.5 * length, 0.5 * length])
     nrm = np.concatenate([normal, normal]) * half[:, None]
     owner = np.concatenate([np.arange(cells.shape[0])] * 2)
+    split = pairs[:, 0] != pairs[:, 1]
+    pairs, half, nrm, owner = pairs[split], half[split], nrm[split], owner[split]
     uniq, first, inverse = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     weight = np.bincount(inverse, weights=half)
@@ -75,3 +79,4 @@ def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
         x=nodes[uniq[:, 0]].copy(),
         cell=owner[first],
     )
+

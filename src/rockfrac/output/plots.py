@@ -57,13 +57,15 @@ def cell_displacement(xe, de, xi, jump=None, normal=None):
     return x, disp
 
 
-def surface_segment(xe: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    """End points (2, 2) of the line through the centroid with this normal, clipped to the cell."""
-    xc = xe.mean(axis=0)
+def surface_segment(xe: np.ndarray, normal: np.ndarray, point: np.ndarray | None = None) -> np.ndarray:
+    """End points (2, 2) of the line through ``point`` (default: the centroid) with this normal,
+    clipped to the convex cell with nodes xe (k, 2)."""
+    xc = xe.mean(axis=0) if point is None else np.asarray(point, dtype=float)
     t = np.array([normal[1], -normal[0]])
     hits = []
-    for a in range(4):
-        p, q = xe[a], xe[(a + 1) % 4]
+    k = xe.shape[0]
+    for a in range(k):
+        p, q = xe[a], xe[(a + 1) % k]
         mat = np.column_stack([t, p - q])
         if abs(np.linalg.det(mat)) < 1e-14 * np.abs(xe).max() ** 2:
             continue

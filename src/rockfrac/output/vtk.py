@@ -1,0 +1,342 @@
+"""ParaView output: one VTU file per converged step and a ``.pvd`` collection that lists them.
+
+Plain arrays in, files out; nothing here knows the engine. A step is one unstructured grid that
+holds three kinds of cells (the cell field ``cell_kind`` tells them apart, see `CellKind`):
+
+- bulk cells: "triangle", "quad" or "hexahedron" (rockfrac's tri3, quad4, hex8; VTK node order);
+- cohesive interfaces (m0, m1, p0, p1) as "quad" cells (m0, m1, p1, p0). They have zero area in
+  the reference configuration and open with ParaView's "Warp By Vector": the minus nodes move
+  with the minus side and the plus nodes with the plus side. Opened, the quad is counter-
+  clockwise, since (t, n) is right-handed. (A "line" (m0, m1) would hide the opening.) In 2D
+  ParaView shows them together with the bulk quads; use "Threshold" on ``cell_kind`` to split them.
+- embedded EDE cracks as "line" cells between EXTRA points appended after the mesh nodes, two
+  per segment (`crack_segments_from_points`). A nodal field at these points is its continuous
+  interpolation N d in the host cell (`interpolate_nodal`), which is what ParaView draws for the
+  bulk cell there. So the warped segment stays on the warped host cell's edges. It is not
+  u^- = N d - [[u]] f_S or u^+ = u^- + [[u]]; the jump itself is the line cells' ``jump`` field.
+
+Field conventions (SI units; names are free, these are the ones rockfrac writes):
+
+- points (n, 3): reference coordinates; 2D padded with z = 0. Point fields with 2 columns on a
+  2D mesh (displacement) are padded to 3 columns, which "Warp By Vector" needs.
+- bulk cells: ``stress`` (n_el, 6), Voigt (xx, yy, zz, xy, yz, xz) averaged over the Gauss
+  points, which is ParaView's order for a symmetric tensor. ``plastic_strain`` (n_el, 6) is
+  Voigt too, with engineering shears, so ParaView's tensor view shows twice the shear
+  components. Also ``gamma`` (accumulated plastic multiplier) and ``localized`` (0/1).
+- crack cells (interfaces and embedded lines), averaged over the cell's points: ``jump`` and
+  ``traction`` (n, 2) in the local frame (t, n), with T_n > 0 in tension; ``state``
+  (a `CrackState` code); ``c``, ``tan_phi``, ...
+- a field missing from a block is NaN there (`pad_cell_data`): VTU needs every cell field on
+  every cell.
+
+Example::
+
+    series = VtkSeries("out/vtk")
+    fields = step_fields(mesh.nodes, mesh.cells, "quad4", interfaces=mesh.interfaces,
+                         point_data={"displacement": u.reshape(-1, 2)},
+                         bulk_data={"stress": stress}, interface_data={"jump": jump})
+    series.write(step, time, fields)  # writes out/vtk/results_00007.vtu, updates results.pvd
+"""
+
+from __future__ import annotations
+
+import enum
+import os
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import meshio
+import numpy as np
+
+#: rockfrac cell type -> meshio (VTK) cell type; node orders are the same.
+MESHIO_TYPES = {"tri3": "triangle", "quad4": "quad", "hex8": "hexahedron"}
+
+
+class CellKind(enum.IntEnum):
+    """Values of the cell field ``cell_kind``."""
+
+    BULK = 0
+    INTERFACE = 1
+    EMBEDDED = 2
+
+
+class CrackState(enum.IntEnum):
+    """Codes for the crack cells' ``state`` field (the ``state`` column of points.csv)."""
+
+    CONSTRAINED = 0
+    ELASTIC = 1
+    PLASTIC = 2
+
+
+@dataclass
+class StepFields:
+    """What one step writes: a grid of several cell blocks and its point and cell fields.
+
+    points: (n, 3) reference coordinates [m]; (n, 2) is padded with z = 0.
+    cells: blocks of (meshio cell type, connectivity (n_block, nodes per cell)).
+    point_data: name -> (n,) or (n, c) array.
+    cell_data: name -> one array per block, (n_block,) or (n_block, c); `pad_cell_data` builds it.
+    """
+
+    points: np.ndarray
+    cells: list[tuple[str, np.ndarray]]
+    point_data: dict[str, np.ndarray] = field(default_factory=dict)
+    cell_data: dict[str, list[np.ndarray]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.points = _pad_columns(np.asarray(self.points, dtype=np.float64), 3)
+        if self.points.ndim != 2 or self.points.shape[1] != 3:
+            raise ValueError(f"points must be (n, 2) or (n, 3), got shape {self.points.shape}")
+        n = self.points.shape[0]
+        for kind, conn in self.cells:
+            if conn.size and (conn.min() < 0 or conn.max() >= n):
+                raise ValueError(f"{kind!r} cells reference points outside 0..{n - 1}")
+        for name, arr in self.point_data.items():
+            if arr.shape[0] != n:
+                raise ValueError(f"point field {name!r} has {arr.shape[0]} rows for {n} points")
+        sizes = [conn.shape[0] for _, conn in self.cells]
+        for name, blocks in self.cell_data.items():
+            rows = [b.shape[0] for b in blocks]
+            if rows != sizes:
+                raise ValueError(f"cell field {name!r} has blocks of {rows} rows for blocks of "
+                                 f"{sizes} cells (use pad_cell_data)")
+
+    def to_meshio(self) -> meshio.Mesh:
+        # int32 connectivity halves the file when the points allow it
+        itype = np.int32 if self.points.shape[0] < 2**31 else np.int64
+        cells = [(kind, np.ascontiguousarray(conn, dtype=itype)) for kind, conn in self.cells]
+        return meshio.Mesh(self.points, cells, point_data=self.point_data, cell_data=self.cell_data)
+
+
+def _pad_columns(arr: np.ndarray, width: int) -> np.ndarray:
+    """(n, width - 1) -> (n, width) with a zero last column; anything else unchanged."""
+    if arr.ndim == 2 and arr.shape[1] == width - 1:
+        return np.concatenate([arr, np.zeros((arr.shape[0], 1), dtype=arr.dtype)], axis=1)
+    return arr
+
+
+def pad_cell_data(blocks_sizes: Sequence[int], data_per_block: Sequence[Mapping[str, np.ndarray]]
+                  ) -> dict[str, list[np.ndarray]]:
+    """Cell fields of every block, NaN where a block lacks a field (as VTU requires).
+
+    blocks_sizes: cells per block; data_per_block: per block, name -> (n_block,) or (n_block, c).
+    A field missing from some block becomes float64; otherwise its dtype is kept.
+    """
+    if len(blocks_sizes) != len(data_per_block):
+        raise ValueError(f"{len(blocks_sizes)} block sizes for {len(data_per_block)} data blocks")
+    tails: dict[str, tuple[int, ...]] = {}
+    for b, (size, data) in enumerate(zip(blocks_sizes, data_per_block)):
+        for name, arr in data.items():
+            arr = np.asarray(arr)
+            if arr.shape[0] != size:
+                raise ValueError(f"cell field {name!r} of block {b} has {arr.shape[0]} rows for "
+                                 f"{size} cells")
+            if tails.setdefault(name, arr.shape[1:]) != arr.shape[1:]:
+                raise ValueError(f"cell field {name!r} has components {arr.shape[1:]} in block {b} "
+                                 f"but {tails[name]} before")
+    out: dict[str, list[np.ndarray]] = {}
+    for name, tail in tails.items():
+        complete = all(name in data for data in data_per_block)
+        out[name] = [np.asarray(data[name]) if complete else
+                     np.asarray(data[name], dtype=np.float64) if name in data else
+                     np.full((size, *tail), np.nan)
+                     for size, data in zip(blocks_sizes, data_per_block)]
+    return out
+
+
+def crack_segments_from_points(x0: np.ndarray, x1: np.ndarray,
+                               offset: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Extra points (2k, 3) and "line" connectivity (k, 2) of k segments x0[i] -> x1[i].
+
+    x0, x1: (k, 2) or (k, 3) end points; 2D is padded with z = 0. Point 2i is x0[i], 2i + 1 is
+    x1[i]; offset is the index of the first extra point (the number of mesh nodes).
+    """
+    x0 = np.asarray(x0, dtype=np.float64)
+    x1 = np.asarray(x1, dtype=np.float64)
+    if x0.shape != x1.shape or x0.ndim != 2 or x0.shape[1] not in (2, 3):
+        raise ValueError(f"segment ends must both be (k, 2) or (k, 3), got {x0.shape} and "
+                         f"{x1.shape}")
+    pts = _pad_columns(np.stack([x0, x1], axis=1).reshape(-1, x0.shape[1]), 3)
+    lines = offset + np.arange(pts.shape[0], dtype=np.int64).reshape(-1, 2)
+    return pts, lines
+
+
+def _local_coordinates(xe: np.ndarray, x: np.ndarray, cell_type: str) -> np.ndarray:
+    """Reference coordinates (k, 2) of points x (k, 2) in cells with in-plane nodes xe (k, m, 2)."""
+    if cell_type == "tri3":
+        jac = np.stack([xe[:, 1] - xe[:, 0], xe[:, 2] - xe[:, 0]], axis=2)  # dx_i / dxi_j
+        return np.linalg.solve(jac, (x - xe[:, 0])[..., None])[..., 0]
+    signs = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])  # Q4 nodes, VTK order
+    xi = np.zeros_like(x)
+    scale = np.abs(xe).max(initial=1.0)
+    for _ in range(30):  # Newton on x(xi) = x; exact in one step for parallelograms
+        f = 0.5 * (1.0 + xi[:, None, :] * signs[None])  # (k, a, j)
+        n = f[..., 0] * f[..., 1]  # (k, a)
+        dn = 0.5 * signs[None] * f[..., ::-1]  # dN_a / dxi_j
+        r = np.einsum("ka,kai->ki", n, xe) - x
+        jac = np.einsum("kai,kaj->kij", xe, dn)
+        step = np.linalg.solve(jac, r[..., None])[..., 0]
+        xi -= step
+        if np.abs(step).max(initial=0.0) < 1e-14 * max(1.0, scale):
+            break
+    return xi
+
+
+def interpolate_nodal(values: np.ndarray, nodes: np.ndarray, cells: np.ndarray, cell_type: str,
+                      host: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """N(x) d: nodal values (n_nodes, ...) interpolated at points x (k, 2|3) in cells host (k,).
+
+    tri3 and quad4 use their shape functions. hex8 uses its bottom face (nodes 0-3, bilinear in
+    x-y): a plane-strain section, as in the plots.
+    """
+    if cell_type not in MESHIO_TYPES:
+        raise ValueError(f"unknown cell type {cell_type!r}; known: {sorted(MESHIO_TYPES)}")
+    plane = cells[host, :3] if cell_type == "tri3" else cells[host, :4]  # (k, m)
+    xi = _local_coordinates(nodes[plane][..., :2], np.asarray(x, dtype=np.float64)[:, :2],
+                            "tri3" if cell_type == "tri3" else "quad4")
+    if cell_type == "tri3":
+        n = np.column_stack([1.0 - xi[:, 0] - xi[:, 1], xi[:, 0], xi[:, 1]])
+    else:
+        n = 0.25 * (1.0 + np.outer(xi[:, 0], [-1.0, 1.0, 1.0, -1.0])) * (
+            1.0 + np.outer(xi[:, 1], [-1.0, -1.0, 1.0, 1.0]))
+    vals = np.asarray(values, dtype=np.float64)[plane]  # (k, m, ...)
+    return np.einsum("km,km...->k...", n, vals)
+
+
+def step_fields(nodes: np.ndarray, cells: np.ndarray, cell_type: str, *,
+                interfaces: np.ndarray | None = None,
+                segments: tuple[np.ndarray, np.ndarray] | None = None,
+                segment_cells: np.ndarray | None = None,
+                point_data: Mapping[str, np.ndarray] | None = None,
+                bulk_data: Mapping[str, np.ndarray] | None = None,
+                interface_data: Mapping[str, np.ndarray] | None = None,
+                segment_data: Mapping[str, np.ndarray] | None = None,
+                segment_point_data: Mapping[str, np.ndarray] | None = None) -> StepFields:
+    """A step's grid: bulk cells, then interface quads, then embedded segments as lines.
+
+    nodes (n, dim), cells (n_el, m) of ``cell_type`` ("tri3", "quad4", "hex8");
+    interfaces (n_if, 4) = (m0, m1, p0, p1), written as quads (m0, m1, p1, p0);
+    segments = (x0, x1), (k, 2|3) end points of embedded cracks, in host cells segment_cells (k,);
+    point_data: nodal fields (n, ...); at the segments' extra points segment_point_data (2k, ...)
+        if given, else N d interpolated in the host cell, else NaN;
+    bulk_data, interface_data, segment_data: cell fields of each kind, NaN-padded to all cells.
+    The field ``cell_kind`` (`CellKind`) is added. Empty kinds write no block.
+    """
+    if cell_type not in MESHIO_TYPES:
+        raise ValueError(f"unknown cell type {cell_type!r}; known: {sorted(MESHIO_TYPES)}")
+    nodes = np.asarray(nodes, dtype=np.float64)
+    n_nodes, dim = nodes.shape
+    blocks: list[tuple[str, np.ndarray]] = [(MESHIO_TYPES[cell_type], np.asarray(cells))]
+    data: list[dict[str, np.ndarray]] = [dict(bulk_data or {})]
+    kinds = [CellKind.BULK]
+    if interfaces is not None and len(interfaces):
+        blocks.append(("quad", np.asarray(interfaces)[:, [0, 1, 3, 2]]))
+        data.append(dict(interface_data or {}))
+        kinds.append(CellKind.INTERFACE)
+    points = nodes
+    extra_values: dict[str, np.ndarray] = {}
+    if segments is not None and len(segments[0]):
+        extra, lines = crack_segments_from_points(*segments, offset=n_nodes)
+        points = np.concatenate([_pad_columns(nodes, 3), extra])
+        blocks.append(("line", lines))
+        data.append(dict(segment_data or {}))
+        kinds.append(CellKind.EMBEDDED)
+        given = dict(segment_point_data or {})
+        for name, arr in (point_data or {}).items():
+            if name in given:
+                extra_values[name] = np.asarray(given[name])
+            elif segment_cells is not None:
+                host = np.repeat(np.asarray(segment_cells), 2)
+                extra_values[name] = interpolate_nodal(arr, nodes, np.asarray(cells), cell_type,
+                                                       host, extra)
+            else:
+                extra_values[name] = np.full((extra.shape[0], *np.shape(arr)[1:]), np.nan)
+    pdata = {}
+    for name, arr in (point_data or {}).items():
+        arr = np.asarray(arr)
+        if name in extra_values:
+            arr = np.concatenate([arr, extra_values[name].astype(np.result_type(arr, np.float64))])
+        pdata[name] = _pad_columns(arr, 3) if dim == 2 else arr
+    sizes = [b[1].shape[0] for b in blocks]
+    for d, kind, size in zip(data, kinds, sizes):
+        d["cell_kind"] = np.full(size, int(kind), dtype=np.int8)
+    return StepFields(points, blocks, pdata, pad_cell_data(sizes, data))
+
+
+class VtkSeries:
+    """``folder/<name>_<step:05d>.vtu`` per step and ``folder/<name>.pvd`` listing them with times.
+
+    Each file is written to a temporary name and moved into place (os.replace), the VTU first and
+    the .pvd after it, so a run that stops at any moment leaves a valid series of whole files.
+    A new series (``resume=False``) deletes the folder's old ``<name>_<digits>.vtu`` files and
+    .pvd; ``resume=True`` continues the series in the existing .pvd (call `truncate_after`
+    with the step resumed from). ``compression``: "zlib" (default), "lzma" or None (faster, larger).
+    """
+
+    def __init__(self, folder: str | Path, name: str = "results", *, resume: bool = False,
+                 compression: str | None = "zlib"):
+        self.folder = Path(folder)
+        self.name = name
+        self.compression = compression
+        self.pvd = self.folder / f"{name}.pvd"
+        self._pattern = re.compile(re.escape(name) + r"_(\d{5,})\.vtu")
+        self.entries: list[tuple[int, float, str]] = []  # (step, time, file name), steps increasing
+        self.folder.mkdir(parents=True, exist_ok=True)
+        if resume and self.pvd.exists():
+            self.entries = self._read_pvd()
+        else:
+            self._delete_files(lambda step: True)
+        self._write_pvd()
+
+    def write(self, step: int, time: float, mesh_arrays: StepFields) -> Path:
+        """Write the step's VTU, then list it in the .pvd; steps must increase. Returns its path."""
+        if self.entries and step <= self.entries[-1][0]:
+            raise ValueError(f"step {step} is not after the last written step {self.entries[-1][0]}"
+                             " (call truncate_after first to rewrite steps)")
+        if not np.isfinite(time):
+            raise ValueError(f"time of step {step} is {time}")
+        file = f"{self.name}_{step:05d}.vtu"
+        tmp = self.folder / f".{file}.tmp"
+        meshio.vtu.write(str(tmp), mesh_arrays.to_meshio(), binary=True,
+                         compression=self.compression)
+        os.replace(tmp, self.folder / file)
+        self.entries.append((int(step), float(time), file))
+        self._write_pvd()
+        return self.folder / file
+
+    def truncate_after(self, step: int) -> None:
+        """After ``step``: delete their VTU files, listed or not; rewrite the .pvd."""
+        self.entries = [e for e in self.entries if e[0] <= step]
+        self._delete_files(lambda s: s > step)
+        self._write_pvd()
+
+    def _delete_files(self, select) -> None:
+        for entry in os.scandir(self.folder):
+            match = self._pattern.fullmatch(entry.name)
+            if match and select(int(match.group(1))):
+                os.remove(entry.path)
+
+    def _write_pvd(self) -> None:
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        lines += [f'    <DataSet timestep="{time!r}" group="" part="0" file={quoteattr(file)}/>'
+                  for _, time, file in self.entries]
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        tmp = self.folder / f".{self.pvd.name}.tmp"
+        tmp.write_text("\n".join(lines))
+        os.replace(tmp, self.pvd)
+
+    def _read_pvd(self) -> list[tuple[int, float, str]]:
+        entries = []
+        for ds in ET.parse(self.pvd).getroot().iter("DataSet"):
+            file = ds.get("file", "")
+            match = self._pattern.fullmatch(file)
+            if match is None:
+                raise ValueError(f"{self.pvd}: {file!r} is not a file of the series {self.name!r}")
+            entries.append((int(match.group(1)), float(ds.get("timestep", "nan")), file))
+        return sorted(entries)

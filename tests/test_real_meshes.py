@@ -1,0 +1,71 @@
+"""Cohesive sets on split meshes, junctions, and the case keys of real meshes."""
+
+import numpy as np
+import pytest
+
+from rockfrac.case.schema import CaseError, parse_case
+from rockfrac.output.csvout import read_csv
+from rockfrac.run import run_case
+from rockfrac.studies import table1
+
+BASE = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
+        "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4}}
+
+
+def test_rp_on_every_edge_reproduces_the_unsplit_solution_and_physical_junction_tractions(tmp_path):
+    """Every internal edge split (4 copies of every interior node: loops of pairs) and tied by
+    constrained RP surfaces: the unsplit elastic response exactly, no jump, and at the junctions
+    the multipliers are the physical tractions sigma . n (least circulation)."""
+    run_case(parse_case(BASE), tmp_path / "a")
+    s = run_case(parse_case(dict(BASE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"))), tmp_path / "b")
+    assert s.result.completed
+    a, b = read_csv(tmp_path / "a" / "history.csv"), read_csv(tmp_path / "b" / "history.csv")
+    p = read_csv(tmp_path / "b" / "points.csv")
+    assert s.built.mesh.n_nodes == 4 * 4 * 6  # every cell has its own corners
+    np.testing.assert_allclose(b["F_axial"], a["F_axial"], rtol=1e-7)
+    assert np.abs(p["jump_t"]).max() < 1e-12 and np.abs(p["jump_n"]).max() < 1e-12
+    assert set(p["state"]) == {"constrained"}
+    last = p["step"] == p["step"].max()
+    horizontal = last & (np.abs(p["angle"]) < 0.1)
+    vertical = last & (np.abs(p["angle"]) > 1.0)
+    np.testing.assert_allclose(p["T_n"][horizontal], -a["F_axial"][-1] / 0.04, rtol=1e-7)
+    np.testing.assert_allclose(p["T_n"][vertical], -2e4, rtol=1e-7)
+    assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
+
+
+def test_ep_on_every_edge_is_softer_by_its_penalties(tmp_path):
+    """EP on every edge: each layer of horizontal surfaces adds 1/kn of compliance."""
+    run_case(parse_case(BASE), tmp_path / "a")
+    k = 1e10
+    s = run_case(parse_case(dict(BASE, cohesive=dict(table1.CSE_LAW, form="ep", where="all", kn=k, kt=k))),
+                 tmp_path / "b")
+    a, b = read_csv(tmp_path / "a" / "history.csv"), read_csv(tmp_path / "b" / "history.csv")
+    ax = a["stage"] == "axial"
+    slope_a = np.polyfit(a["u_axial"][ax], a["F_axial"][ax], 1)[0]
+    slope_b = np.polyfit(b["u_axial"][ax], b["F_axial"][ax], 1)[0]
+    w, h, ny = 0.04, 0.08, 6
+    e1 = 1.5e7 / (1 - 0.09)
+    # series: bulk h/E' and (ny - 1) horizontal surfaces of compliance 1/kn (lateral coupling is second order)
+    assert slope_b / slope_a == pytest.approx((h / e1) / (h / e1 + (ny - 1) / k), rel=2e-3)
+    assert s.result.completed
+
+
+@pytest.mark.parametrize("edit,expected", [
+    ({"cohesive": dict(table1.CSE_LAW, form="rp", where="between", regions=["grains"])},
+     "where = 'between' needs regions = a list of 2 region name(s)"),
+    ({"cohesive": dict(table1.CSE_LAW, form="rp", where="between", regions=["grains", "matrix"])},
+     "regions: region 'grains', 'matrix' not in the mesh; its regions: bulk"),
+    ({"cohesive": dict(table1.CSE_LAW, form="rp", where="curves", curves=["fault"])},
+     "curves: curve group 'fault' not in the mesh"),
+    ({"loading": dict(BASE["loading"], axial="lid")}, "[loading] support, pin, axial: node group 'lid' not in the mesh"),
+    ({"materials": [{"region": "rock", "E": 1e7, "nu": 0.2}]}, "give either [bulk] (one material everywhere) or [[materials]]"),
+    ({"mesh": {"kind": "gmsh"}}, "kind = 'gmsh' needs file"),
+    ({"mesh": {"kind": "block", "crack_angle": 0.3}}, "crack_angle do not apply to kind = 'block'"),
+])
+def test_bad_real_mesh_cases_name_the_key(tmp_path, edit, expected):
+    from rockfrac.case.build import build
+
+    case = dict(BASE, **edit)
+    with pytest.raises(CaseError) as err:
+        build(parse_case(case, "c.toml"), "c.toml")
+    assert expected in str(err.value) and "c.toml" in str(err.value)

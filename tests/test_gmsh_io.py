@@ -19,7 +19,7 @@ SIDES = {"bottom": (0.0, -1.0), "right": (1.0, 0.0), "top": (0.0, 1.0), "left": 
 
 
 def two_layer_msh(path, *, quads=False, mixed=False, version=4.1, save_all=0, skip_upper=False,
-                  interface=False, order=1):
+                  interface=False, order=1, alias=False):
     """A W x H rectangle of two surfaces (lower, upper) with boundary curves and bottom_left."""
     with gmsh_session("test"):
         occ = gmsh.model.occ
@@ -39,6 +39,8 @@ def two_layer_msh(path, *, quads=False, mixed=False, version=4.1, save_all=0, sk
             found = gmsh.model.getEntitiesInBoundingBox(x0, y0, -e, x1, y1, e, dim=1)
             curves = [t for _, t in found]
             gmsh.model.addPhysicalGroup(1, curves, name=name)
+            if alias and name == "bottom":  # the same curve in a second group
+                gmsh.model.addPhysicalGroup(1, curves, name="base")
         gmsh.model.addPhysicalGroup(0, [t for _, t in gmsh.model.getEntitiesInBoundingBox(
             -e, -e, -e, e, e, e, dim=0)], name="bottom_left")
         gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
@@ -78,7 +80,9 @@ def polygon_areas(mesh, cells):
 
 @pytest.mark.parametrize("quads,version", [(False, 4.1), (True, 4.1), (False, 2.2)])
 def test_round_trip_groups_and_orientation(tmp_path, quads, version):
-    mesh = read_mesh(two_layer_msh(tmp_path / "two.msh", quads=quads, version=version))
+    mesh = read_mesh(two_layer_msh(tmp_path / "two.msh", quads=quads, version=version, alias=True))
+    assert np.array_equal(mesh.edge_sets.pop("base"), mesh.edge_sets["bottom"])  # MSH 2: no repeats
+    assert np.array_equal(mesh.node_sets.pop("base"), mesh.node_sets["bottom"])
     assert mesh.cell_type == ("quad4" if quads else "tri3")
     assert mesh.check() == []
     assert np.array_equal(np.unique(mesh.cells), np.arange(mesh.n_nodes))  # no unused nodes
@@ -152,6 +156,7 @@ def test_hex_faces_outward(tmp_path):
         n = np.cross(x[:, 1] - x[:, 0], x[:, 3] - x[:, 0])
         assert len(n) == 4 and np.all(n[:, 0] * nx > 0)
     assert len(boundary_faces(mesh)) == 24
+    assert read_mesh(path, dim=None).cell_type == "hex8"  # the file's own dimension
     with pytest.raises(CaseError, match=r"box\.msh: the mesh has 3D elements but a 2D mesh was"):
         read_mesh(path)
 
@@ -238,3 +243,11 @@ def test_session_keeps_the_callers_model():
         assert gmsh.model.getCurrent() == "mine" and gmsh.model.getEntities(3) == [(3, 1)]
     finally:
         gmsh.finalize()
+
+
+def test_mirrored_hexahedron_is_reversed(tmp_path):
+    cube = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    # bottom face clockwise seen from above: a mirrored hexahedron
+    path = msh22(tmp_path / "hex.msh", cube, [(5, 1, (1, 4, 3, 2, 5, 8, 7, 6))], [(3, 1, "rock")])
+    mesh = read_mesh(path, dim=3)
+    assert mesh.check() == [] and np.array_equal(mesh.cells, [[0, 1, 2, 3, 4, 5, 6, 7]])

@@ -34,7 +34,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 highlight=False,
             )
 
-    summary = run_case(case, args.out, progress=progress, path_label=str(args.case))
+    summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume)
     style = "green" if summary.result.completed else "red"
     console.print(f"[{style}]{summary.result.message}[/] — {summary.result.steps} steps, "
                   f"{summary.newton_iterations} Newton iterations, {summary.wall_time:.2f} s; "
@@ -123,6 +123,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("case", type=Path)
     r.add_argument("--out", type=Path, required=True, help="output directory")
     r.add_argument("--quiet", action="store_true", help="no per-step progress lines")
+    r.add_argument("--resume", action="store_true",
+                   help="continue from the last checkpoint in --out ([output] checkpoint_every)")
     r.set_defaults(func=_cmd_run)
     d = sub.add_parser("drive", help="material-point driver of a traction law along a jump path")
     d.add_argument("law", type=Path, help="law file (TOML, [law] section)")

@@ -10,8 +10,9 @@ import numpy as np
 import tomli_w
 
 from rockfrac.case.build import Built, build, resolve
-from rockfrac.case.schema import Case, load_case
+from rockfrac.case.schema import Case, CaseError, load_case
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
+from rockfrac.output import checkpoint
 from rockfrac.output.csvout import HISTORY_COLUMNS, POINT_COLUMNS, CsvWriter
 from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import NewtonOptions
@@ -122,8 +123,14 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
     return row
 
 
-def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label: str | None = None) -> RunSummary:
-    """Run a validated case (or a case file) and write its outputs into ``out``."""
+def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label: str | None = None,
+             resume: bool = False) -> RunSummary:
+    """Run a validated case (or a case file) and write its outputs into ``out``.
+
+    resume: continue from out/checkpoint.pkl (written every [output] checkpoint_every steps) with the
+    same case; the outputs are cut back to the checkpoint's step and continued, so the result is that
+    of an uninterrupted run.
+    """
     label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
     if not isinstance(case, Case):
         case = load_case(case)
@@ -131,23 +138,49 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     resolved = resolve(case)
-    (out / "case.toml").write_text(tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True)))
-    history = CsvWriter(out / "history.csv", HISTORY_COLUMNS)
+    case_text = tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True))
+    start, run_state = None, {"F": -np.inf, "iters": 0, "onsets": 0}
+    if resume:
+        saved = checkpoint.load(out)
+        if saved is None:
+            raise CaseError(f"{out}: --resume: no checkpoint here (set [output] checkpoint_every to write them)")
+        if saved["case"] != case_text:
+            raise CaseError(f"{out}: --resume: the case differs from the one the checkpoint was written for "
+                            f"({out / 'case.toml'}); resume with the same case")
+        try:
+            checkpoint.restore(built.model.groups, saved["groups"])
+        except ValueError as err:
+            raise CaseError(f"{out}: --resume: {err}") from None
+        start, run_state = saved["position"], saved["run"]
+    (out / "case.toml").write_text(case_text)
+    keep = start.count if start is not None else None
+    history = CsvWriter(out / "history.csv", HISTORY_COLUMNS, keep_steps=keep)
     has_points = bool(built.cohesives or built.embeddeds)
-    points = CsvWriter(out / "points.csv", POINT_COLUMNS) if case.output.points and has_points else None
-    log_fh = open(out / "run.log", "w")
+    points = CsvWriter(out / "points.csv", POINT_COLUMNS, keep_steps=keep) if case.output.points and has_points \
+        else None
+    series = None
+    if case.output.vtk:
+        from rockfrac.output.fields import step_output
+        from rockfrac.output.vtk import VtkSeries
+
+        series = VtkSeries(out / "vtk", resume=start is not None)
+        if start is not None:
+            series.truncate_after(start.count)
+    log_fh = open(out / "run.log", "a" if start is not None else "w")
 
     def log(msg: str) -> None:
         log_fh.write(msg + "\n")
 
+    if start is not None:
+        log(f"resumed from the checkpoint at step {start.count}")
     warnings = case_warnings(built)
     for w in warnings:
         log(f"warning: {w}")
-    sol = case.solver
+    sol, opts = case.solver, case.output
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                            force_scale=1e-6 * max(m.E for m in case.material_list) * case.mesh.width)
     stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
-    peak = {"F": -np.inf, "iters": 0, "onsets": 0}
+    peak = run_state
     stop_frac = case.loading.stop_below_peak_fraction
 
     def on_step(info: StepInfo) -> None:
@@ -157,6 +190,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
         if points is not None:
             rec["step"] = np.full(rec["x"].shape[0], info.step)
             points.write_many(rec, rec["x"].shape[0])
+        if series is not None and info.step % opts.vtk_every == 0:
+            series.write(info.step, float(info.step), step_output(built, info.u))
         peak["iters"] += info.newton.iterations
         log(f"step {info.step} [{info.stage}] lf={info.load_factor:.6f} u={row['u_axial']:.6e} "
             f"F={row['F_axial']:.6e} iterations={info.newton.iterations}")
@@ -168,12 +203,16 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
             progress(row)
         if info.stage.startswith("axial"):
             peak["F"] = max(peak["F"], row["F_axial"])
-            if stop_frac is not None and row["F_axial"] < stop_frac * peak["F"]:
-                raise StopRun(f"force {row['F_axial']:.1f} N/m fell below {stop_frac} x peak {peak['F']:.1f} N/m")
+        if opts.checkpoint_every and info.step % opts.checkpoint_every == 0:
+            checkpoint.save(out, info.position, built.model.groups, peak, case_text)
+            log(f"  checkpoint at step {info.step}")
+        if info.stage.startswith("axial") and stop_frac is not None and row["F_axial"] < stop_frac * peak["F"]:
+            raise StopRun(f"force {row['F_axial']:.1f} N/m fell below {stop_frac} x peak {peak['F']:.1f} N/m")
 
     t0 = time.perf_counter()
     try:
-        result = run_stages(built.model, built.stages, make_solver(sol.linear), newton, stepping, on_step, log)
+        result = run_stages(built.model, built.stages, make_solver(sol.linear), newton, stepping, on_step, log,
+                            start=start)
     finally:
         history.close()
         if points is not None:

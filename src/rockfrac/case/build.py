@@ -109,7 +109,7 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
         if m.kind is MeshKind.gmsh:
             from rockfrac.mesh.gmsh_io import read_mesh
 
-            mesh = read_mesh(m.file)
+            mesh = read_mesh(m.file, dim=None)
         elif m.kind is MeshKind.grains:
             from rockfrac.mesh.grains import grain_specimen
 
@@ -284,6 +284,8 @@ def build(case: Case, path: str = "<case>") -> Built:
     top_y = dim * sets[load.axial] + 1
     held = [dim * sets[load.support] + 1, dim * sets[load.pin], top_y]
     if dim == 3:  # plane strain: both out-of-plane faces held in their normal direction
+        _require(["back", "front"], sets, "node group", "[mesh] (3D plane strain needs the out-of-plane faces)",
+                 path)
         held += [3 * sets["back"] + 2, 3 * sets["front"] + 2]
     dirichlet = np.unique(np.concatenate(held))
     model = Model(mesh.n_nodes, bulks + cohesives, dirichlet, dim=dim)
@@ -298,6 +300,13 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, surfaces: l
     f_conf = np.zeros(model.n_dofs)
     groups = mesh.edge_sets if mesh.dim == 2 else mesh.face_sets
     _require(load.pressure, groups, "boundary group", "[loading] pressure", path)
+    if mesh.dim == 2:
+        from rockfrac.mesh.gmsh_io import on_boundary
+
+        inside = [side for side in load.pressure if not on_boundary(mesh, groups[side]).all()]
+        if inside:
+            raise CaseError(f"{path}: [loading] pressure: {', '.join(repr(s) for s in inside)} are not (all) on "
+                            "the boundary; the confining pressure acts on boundary edges")
     for side in load.pressure:
         if mesh.dim == 2:
             edge_pressure(mesh.nodes, groups[side], load.confinement, f_conf)

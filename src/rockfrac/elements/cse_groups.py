@@ -21,6 +21,7 @@ class _CohesiveGroup:
     """State handling shared by the EP and RP cohesive surfaces."""
 
     constant = False
+    checkpoint_attrs = ("state", "tangent")
 
     def __init__(self, points: InterfacePoints, law: CohesiveLaw):
         self.points = points

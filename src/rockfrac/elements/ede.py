@@ -54,6 +54,9 @@ def _band(n: np.ndarray) -> float:
 class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
+    checkpoint_attrs = ("state", "sigma", "e_state", "gradf", "active", "anchor", "segments", "onsets",
+                        "last_event")
+
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
                  surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none"):
         super().__init__(nodes, cells, ref, law)

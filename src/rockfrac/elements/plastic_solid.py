@@ -89,6 +89,7 @@ class DruckerPragerSolid(SolidGeometry):
 
     constant = False
     n_extra = 0
+    checkpoint_attrs = ("state", "sigma")
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager):
         super().__init__(nodes, cells, ref)

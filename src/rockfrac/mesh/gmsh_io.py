@@ -2,9 +2,10 @@
 
 What :func:`read_mesh` makes of a file:
 
-- Cells: every element of the top dimension ``dim``; they must be of one supported type (2D: tri3
-  from Gmsh "Triangle 3" or quad4 from "Quadrilateral 4"; 3D: hex8 from "Hexahedron 8"). Nodes on
-  no cell (geometry points, ...) are dropped and the rest renumbered compactly, in Gmsh's order.
+- Cells: every element of dimension ``dim`` (2, 3, or None: the file's highest; elements of a
+  higher dimension are an error); they must be of one supported type (2D: tri3 from Gmsh
+  "Triangle 3" or quad4 from "Quadrilateral 4"; 3D: hex8 from "Hexahedron 8"). Nodes on no
+  cell (geometry points, ...) are dropped and the rest renumbered compactly, in Gmsh's order.
   2D meshes must lie in a plane z = const; z is dropped.
 - Orientation: the Jacobian is evaluated at every corner of every cell. A cell with all corner
   Jacobians negative (a clockwise triangle or quadrilateral, as Gmsh makes on a surface whose
@@ -28,7 +29,12 @@ What :func:`read_mesh` makes of a file:
 - Unnamed physical groups are named by their number, e.g. "3".
 
 Every problem raises :class:`rockfrac.case.schema.CaseError` naming the file, what is wrong and
-what is allowed. :func:`require_groups` does the same for groups a case asks for.
+what is allowed. :func:`require_groups` does the same for groups a case asks for. Gmsh is one
+process-wide state: read from one thread at a time.
+
+Why Gmsh and not meshio: meshio 5.3 fails on MSH 4.1 files saved with Mesh.SaveAll = 1 when some
+entities are in no physical group, keeps one of two groups of the same name, and returns the
+repeated elements of MSH 2 files twice; Gmsh reads every version the way Gmsh wrote it.
 
 Example::
 
@@ -126,10 +132,13 @@ def gmsh_session(model: str = "rockfrac") -> Iterator[None]:
             gmsh.option.setNumber("General.Terminal", terminal)
 
 
-def read_mesh(path: str | Path, *, dim: int = 2) -> Mesh:
-    """Read a Gmsh .msh file into a Mesh (see the module docstring); CaseError on any problem."""
-    if dim not in ALLOWED:
-        raise ValueError(f"dim must be 2 or 3, got {dim}")
+def read_mesh(path: str | Path, *, dim: int | None = 2) -> Mesh:
+    """Read a Gmsh .msh file into a Mesh (see the module docstring); CaseError on any problem.
+
+    dim: the mesh's dimension, 2 or 3; None takes the highest dimension of the file's elements.
+    """
+    if dim not in (2, 3, None):
+        raise ValueError(f"dim must be 2, 3 or None, got {dim}")
     if not Path(path).is_file():
         raise CaseError(f"{path}: no such file")
     import gmsh
@@ -142,7 +151,7 @@ def read_mesh(path: str | Path, *, dim: int = 2) -> Mesh:
         return mesh_from_model(dim=dim, source=str(path))
 
 
-def mesh_from_model(*, dim: int = 2, source: str = "gmsh model") -> Mesh:
+def mesh_from_model(*, dim: int | None = 2, source: str = "gmsh model") -> Mesh:
     """The Mesh of Gmsh's current model (meshed), as :func:`read_mesh` describes; ``source``
     names it in error messages."""
     return _to_mesh(_collect(), dim, source)
@@ -166,7 +175,11 @@ def _collect() -> _Raw:
     return _Raw(np.asarray(tags, np.int64), np.asarray(coords).reshape(-1, 3), blocks, groups)
 
 
-def _to_mesh(raw: _Raw, dim: int, source: str) -> Mesh:
+def _to_mesh(raw: _Raw, dim: int | None, source: str) -> Mesh:
+    if dim is None:
+        dim = max((b.dim for b in raw.blocks), default=0)
+        if dim not in ALLOWED:
+            raise CaseError(f"{source}: no 2D or 3D cells; the file has {_summary(raw.blocks)}")
     cell_type, tags, entity, cell_nodes = _bulk(raw, dim, source)
     regions = _regions(raw, dim, entity, tags, source)
     used, cells = np.unique(cell_nodes, return_inverse=True)  # node tags on cells, sorted
@@ -211,7 +224,7 @@ def _bulk(raw: _Raw, dim: int, source: str) -> tuple[str, np.ndarray, np.ndarray
     entity = np.concatenate([np.full(len(b.tags), b.entity) for b in blocks])
     nodes = np.vstack([b.nodes for b in blocks])
     # MSH 2 files repeat an element once per physical group: keep the first copy
-    _, first = np.unique(np.sort(nodes, axis=1), axis=0, return_index=True)
+    _, first = np.unique(_same_nodes(nodes), return_index=True)
     keep = np.sort(first)
     return CELL_TYPES[blocks[0].name], tags[keep], entity[keep], nodes[keep]
 
@@ -313,7 +326,8 @@ def _lower_groups(raw: _Raw, dim: int, used: np.ndarray, source: str) -> tuple[d
                 raise CaseError(f"{source}: physical {word} {g.name!r} holds {_summary(wrong)}; "
                                 f"its elements must be '{side}' (sides of the {dim}D cells)")
             k = pos.reshape(-1, 2 if dim == 2 else 4)
-            sides[g.name] = np.vstack([sides[g.name], k]) if g.name in sides else k
+            k = np.vstack([sides[g.name], k]) if g.name in sides else k
+            sides[g.name] = k[np.sort(np.unique(_same_nodes(k), return_index=True)[1])]  # MSH 2
     return node_sets, sides
 
 
@@ -325,12 +339,34 @@ def _cell_sides(cells: np.ndarray, dim: int) -> np.ndarray:
     return cells[:, HEX_FACES].reshape(-1, 4)
 
 
+def _same_nodes(rows: np.ndarray) -> np.ndarray:
+    """An id per row of node indices (k, m), equal for rows holding the same nodes in any order.
+
+    Sorted rows are packed two columns per int64 key (a * n + b) and lexsorted: several times
+    faster than np.unique(axis=0).
+    """
+    r = np.sort(np.asarray(rows, dtype=np.int64), axis=1)
+    if len(r) == 0:
+        return np.zeros(0, np.int64)
+    n = r.max() + 1
+    keys = [r[:, j] * n + r[:, j + 1] for j in range(0, r.shape[1] - 1, 2)]
+    if r.shape[1] % 2:
+        keys.append(r[:, -1])
+    order = np.lexsort(keys[::-1])  # the first key is the primary one
+    new = np.zeros(len(r), bool)
+    new[0] = True
+    for k in keys:
+        ks = k[order]
+        new[1:] |= ks[1:] != ks[:-1]
+    ids = np.empty(len(r), np.int64)
+    ids[order] = np.cumsum(new) - 1
+    return ids
+
+
 def _match(sides: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each query row: a row of ``sides`` with the same nodes (-1 if none), and how many
     rows of ``sides`` have those nodes (1: a boundary side; 2: an internal one)."""
-    both = np.sort(np.vstack([sides, query]), axis=1)
-    _, inv = np.unique(both, axis=0, return_inverse=True)
-    inv = inv.ravel()
+    inv = _same_nodes(np.vstack([sides, query]))
     n_keys = inv.max() + 1 if inv.size else 0
     count = np.bincount(inv[: len(sides)], minlength=n_keys)
     row = np.full(n_keys, -1)
@@ -371,9 +407,8 @@ def boundary_faces(mesh: Mesh) -> np.ndarray:
 
 
 def _boundary(sides: np.ndarray) -> np.ndarray:
-    _, inv, count = np.unique(np.sort(sides, axis=1), axis=0, return_inverse=True,
-                              return_counts=True)
-    return sides[count[inv.ravel()] == 1]
+    ids = _same_nodes(sides)
+    return sides[np.bincount(ids)[ids] == 1]
 
 
 def on_boundary(mesh: Mesh, sides: np.ndarray) -> np.ndarray:

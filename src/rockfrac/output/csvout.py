@@ -29,11 +29,23 @@ def _fmt(v: Any) -> str:
 class CsvWriter:
     """A CSV file with a fixed header; ``write`` appends rows and flushes."""
 
-    def __init__(self, path: Path, columns: list[str]):
+    def __init__(self, path: Path, columns: list[str], keep_steps: int | None = None):
+        """A new file, or (keep_steps) the existing one cut to its rows with step <= keep_steps and
+        appended to (a resumed run)."""
         self.columns = columns
-        self._fh = open(path, "w", newline="")
-        self._csv = csv.writer(self._fh)
-        self._csv.writerow(columns)
+        if keep_steps is not None and Path(path).exists():
+            with open(path, newline="") as fh:
+                rows = list(csv.reader(fh))
+            step = rows[0].index("step")
+            kept = [r for r in rows[1:] if r and int(float(r[step])) <= keep_steps]
+            self._fh = open(path, "w", newline="")
+            self._csv = csv.writer(self._fh)
+            self._csv.writerow(rows[0])
+            self._csv.writerows(kept)
+        else:
+            self._fh = open(path, "w", newline="")
+            self._csv = csv.writer(self._fh)
+            self._csv.writerow(columns)
         self._fh.flush()
 
     def write(self, row: dict[str, Any]) -> None:

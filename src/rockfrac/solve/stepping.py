@@ -55,6 +55,20 @@ class SteppingOptions:
 
 
 @dataclass
+class Position:
+    """Where the stepping is after a converged step: enough, with the model's committed state, to
+    continue exactly as an uninterrupted run would (a checkpoint)."""
+
+    stage: int  # index of the current stage
+    lam: float  # its load factor
+    u: np.ndarray
+    count: int  # converged steps so far
+    stage_steps: int
+    size: dict  # next increments: {"load": ..., "path": ...}
+    forced: bool  # path control taken over after a failed load step
+
+
+@dataclass
 class StepInfo:
     stage: str
     step: int
@@ -64,6 +78,7 @@ class StepInfo:
     newton: NewtonResult
     cutbacks: int
     controlled_by: str  # "load" or "path"
+    position: Position | None = None
 
 
 @dataclass
@@ -91,18 +106,25 @@ def run_stages(
     stepping: SteppingOptions,
     on_step: Callable[[StepInfo], None],
     log: Callable[[str], None] = lambda s: None,
+    start: Position | None = None,
 ) -> RunResult:
-    """Run the stages in order from u = 0; returns after the last stage or a clean stop."""
-    u = np.zeros(model.n_dofs)
+    """Run the stages in order from u = 0 (or from ``start``, with the model's committed state
+    restored to it); returns after the last stage or a clean stop."""
+    u = np.zeros(model.n_dofs) if start is None else start.u.copy()
     d_start = np.zeros(model.dirichlet.shape[0])
     f_start = np.zeros(model.n_dofs)
-    count = 0
-    for stage in stages:
+    count = 0 if start is None else start.count
+    for index, stage in enumerate(stages):
+        if start is not None and index < start.stage:
+            d_start, f_start = stage.dirichlet_end, stage.f_ext_end
+            continue
         loads = Loads(d_start, stage.dirichlet_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
         nominal = {"load": 1.0 / stage.steps, "path": stage.path.increment if stage.path else 0.0}
         size = dict(nominal)
         forced = False  # path control taken over after a failed load-controlled step
+        if start is not None and index == start.stage:
+            lam, stage_steps, size, forced = start.lam, start.stage_steps, dict(start.size or nominal), start.forced
         while lam < 1.0 - 1e-12:
             use_path = stage.path is not None and (forced or stage.path.active())
             mode = "path" if use_path else "load"
@@ -146,13 +168,16 @@ def run_stages(
             u, lam = res.u, res.lam
             count += 1
             stage_steps += 1
-            try:
-                on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, cutbacks, mode))
-            except StopRun as stop:
-                return RunResult(True, count, str(stop), u)
-            cutbacks = 0
+            step_cutbacks, cutbacks = cutbacks, 0
             if res.iterations <= stepping.easy_iterations:
                 size[mode] = min(nominal[mode], size[mode] * stepping.grow)
+            done = lam >= 1.0 - 1e-12
+            position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,
+                                0 if done else stage_steps, {} if done else dict(size), False if done else forced)
+            try:
+                on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, step_cutbacks, mode, position))
+            except StopRun as stop:
+                return RunResult(True, count, str(stop), u)
             if stage.path is not None and stage_steps >= stage.path.max_steps:
                 return RunResult(False, count, f"stage {stage.name!r} reached its maximum of "
                                  f"{stage.path.max_steps} steps at load factor {lam:.6f}", u)

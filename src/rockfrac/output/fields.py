@@ -1,0 +1,108 @@
+"""The fields of a converged step for ParaView: displacement, cell-averaged stresses and plastic
+variables, cohesive surfaces (zero-thickness quads) and embedded crack segments with their jumps,
+tractions, strengths and states (see :mod:`rockfrac.output.vtk` for how each is written)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rockfrac.elements import ede_kernel as K
+from rockfrac.laws.cohesive_params import MODE_PLASTIC
+from rockfrac.laws.drucker_prager_params import S_GAMMA
+from rockfrac.output.vtk import CrackState, StepFields, step_fields
+
+
+def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region."""
+    n_el = built.mesh.cells.shape[0]
+    out = {"stress": np.zeros((n_el, 6)), "plastic_strain": np.zeros((n_el, 6)), "gamma": np.zeros(n_el),
+           "localized": np.zeros(n_el, dtype=np.int8), "region": np.zeros(n_el, dtype=np.int32)}
+    for k, g in enumerate(built.bulks):
+        ids = getattr(g, "cell_ids", np.arange(n_el))
+        out["stress"][ids] = g.stresses(u).mean(axis=1)
+        out["region"][ids] = k
+        if hasattr(g, "state"):  # Drucker-Prager: committed plastic strain and multiplier
+            out["plastic_strain"][ids] = g.state[..., 0:6].mean(axis=1)
+            out["gamma"][ids] = g.state[..., S_GAMMA].mean(axis=1)
+        if hasattr(g, "e_state"):
+            out["localized"][ids] = g.e_state[:, K.E_LOC].astype(np.int8)
+    return out
+
+
+def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp: np.ndarray):
+    """Index of each query pair (qm, qp) among the pairs (minus, plus), and whether it is there."""
+    keys = minus * n + plus
+    if keys.size == 0:
+        return np.zeros(qm.size, dtype=np.int64), np.zeros(qm.size, dtype=bool)
+    order = np.argsort(keys)
+    q = qm * n + qp
+    pos = np.clip(np.searchsorted(keys[order], q), 0, keys.size - 1)
+    return order[pos], keys[order][pos] == q
+
+
+def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
+    """Per interface cell: the mean of its two node-pair points (jump, traction, strengths, state)."""
+    mesh = built.mesh
+    cells, n = mesh.interfaces, mesh.n_nodes
+    n_if = cells.shape[0]
+    sums = {"jump": np.zeros((n_if, 2)), "traction": np.zeros((n_if, 2)), "plastic_jump": np.zeros((n_if, 2)),
+            "c": np.zeros(n_if), "tan_phi": np.zeros(n_if), "chi": np.zeros(n_if)}
+    count = np.zeros(n_if)
+    state = np.full(n_if, -1, dtype=np.int8)
+    for g in built.cohesives:
+        rec = g.records(u)
+        vals = {"jump": np.column_stack([rec["jump_t"], rec["jump_n"]]),
+                "traction": np.column_stack([rec["T_t"], rec["T_n"]]),
+                "plastic_jump": np.column_stack([rec["jump_p_t"], rec["jump_p_n"]]),
+                "c": rec["c"], "tan_phi": rec["tan_phi"], "chi": rec["chi"]}
+        rigid = g.section.form.value == "rp"
+        st = np.where(rec["mode"] == MODE_PLASTIC, CrackState.PLASTIC,
+                      CrackState.CONSTRAINED if rigid else CrackState.ELASTIC).astype(np.int8)
+        for a, b in ((0, 2), (1, 3)):  # the two node pairs of each interface cell
+            idx, hit = _pair_index(g.points.minus, g.points.plus, n, cells[:, a], cells[:, b])
+            for name, v in vals.items():
+                sums[name][hit] += v[idx[hit]]
+            count[hit] += 1
+            state[hit] = np.maximum(state[hit], st[idx[hit]])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = {name: (v.T / count).T for name, v in sums.items()}  # NaN where no point (a crack tip pair)
+    out["state"] = state
+    return out
+
+
+def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None, dict]:
+    """End points of the embedded crack segments (2D), their host cells and fields."""
+    x0, x1, host, data = [], [], [], {"jump": [], "traction": [], "c": [], "tan_phi": [], "state": []}
+    for g in built.embeddeds:
+        cells = g.localized()
+        if not cells.size or g.dim != 2:
+            continue
+        rec = g.records()
+        seg = g.segments[cells]
+        x0.append(seg[:, 0])
+        x1.append(seg[:, 1])
+        host.append(getattr(g, "cell_ids", np.arange(g.cells.shape[0]))[cells])
+        data["jump"].append(np.column_stack([rec["jump_t"], rec["jump_n"]]))
+        data["traction"].append(np.column_stack([rec["T_t"], rec["T_n"]]))
+        data["c"].append(rec["c"])
+        data["tan_phi"].append(rec["tan_phi"])
+        data["state"].append(np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8))
+    if not x0:
+        return None, None, {}
+    return (np.vstack(x0), np.vstack(x1)), np.concatenate(host), {k: np.concatenate(v) for k, v in data.items()}
+
+
+def step_output(built, u: np.ndarray) -> StepFields:
+    """The ParaView fields of the committed state at displacement u."""
+    mesh = built.mesh
+    disp = u[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
+    segments, hosts, seg_data = _segments(built)
+    return step_fields(
+        mesh.nodes, mesh.cells, mesh.cell_type,
+        interfaces=mesh.interfaces if mesh.interfaces.size else None,
+        segments=segments, segment_cells=hosts,
+        point_data={"displacement": disp},
+        bulk_data=_bulk_fields(built, u),
+        interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
+        segment_data=seg_data or None,
+    )

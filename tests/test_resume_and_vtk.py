@@ -1,0 +1,88 @@
+"""Checkpoints and --resume reproduce an uninterrupted run; the ParaView series of a run."""
+
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from rockfrac.case.schema import CaseError, parse_case
+from rockfrac.output.csvout import read_csv
+from rockfrac.run import run_case
+from rockfrac.studies import table1
+
+
+class Interrupt(Exception):
+    pass
+
+
+def interrupted_then_resumed(case, tmp_path, at: int):
+    def stop(row):
+        if row["step"] == at:
+            raise Interrupt()
+
+    with pytest.raises(Interrupt):
+        run_case(case, tmp_path / "cut", progress=stop)
+    return run_case(case, tmp_path / "cut", resume=True)
+
+
+@pytest.mark.parametrize("name", ["rp_path", "ede"])
+def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
+    if name == "rp_path":
+        d = table1.cse_case("rp", axial_steps=120, control="path", axial_displacement=2e-3)
+    else:
+        d = table1.ede_case(element="quad4", axial_steps=150)
+    d["output"] = {"checkpoint_every": 25, "vtk": True, "vtk_every": 10}
+    case = parse_case(d)
+    run_case(case, tmp_path / "full")
+    s = interrupted_then_resumed(case, tmp_path, at=70)
+    assert s.result.completed
+    for csv in ("history.csv", "points.csv"):
+        a, b = read_csv(tmp_path / "full" / csv), read_csv(tmp_path / "cut" / csv)
+        assert a.keys() == b.keys() and len(a["step"]) == len(b["step"])
+        for k in a:
+            if a[k].dtype.kind == "f":
+                np.testing.assert_array_equal(a[k], b[k])  # bit for bit
+            else:
+                assert list(a[k]) == list(b[k])
+    log = (tmp_path / "cut" / "run.log").read_text()
+    assert "resumed from the checkpoint at step 50" in log
+    files = sorted((tmp_path / "cut" / "vtk").glob("*.vtu"))
+    assert [f.name for f in files] == sorted(f.name for f in (tmp_path / "full" / "vtk").glob("*.vtu"))
+    entries = ET.parse(tmp_path / "cut" / "vtk" / "results.pvd").getroot().iter("DataSet")
+    assert [e.get("file") for e in entries] == [f.name for f in files]
+
+
+def test_resume_refuses_a_changed_case_or_no_checkpoint(tmp_path):
+    d = table1.cse_case("rp", axial_steps=20, axial_displacement=6e-4)
+    d["output"] = {"checkpoint_every": 5}
+    run_case(parse_case(d), tmp_path / "o")
+    d["loading"]["axial_steps"] = 30
+    with pytest.raises(CaseError, match="the case differs"):
+        run_case(parse_case(d), tmp_path / "o", resume=True)
+    with pytest.raises(CaseError, match="no checkpoint here"):
+        run_case(parse_case(d), tmp_path / "none", resume=True)
+
+
+def test_paraview_series_of_cracked_runs(tmp_path):
+    d = table1.ede_case(element="quad4", axial_steps=150)
+    d["output"] = {"vtk": True, "vtk_every": 150}
+    run_case(parse_case(d), tmp_path / "ede")
+    m = meshio.read(sorted((tmp_path / "ede" / "vtk").glob("*.vtu"))[-1])
+    kinds = {c.type: len(c.data) for c in m.cells}
+    assert kinds == {"quad": 1, "line": 1}  # the cell and its embedded segment
+    jump = m.cell_data["jump"][1][0]
+    p = read_csv(tmp_path / "ede" / "points.csv")
+    at = p["step"] == 150
+    np.testing.assert_allclose(jump, [p["jump_t"][at][0], p["jump_n"][at][0]], rtol=1e-12)
+    assert m.cell_data["localized"][0][0] == 1 and np.isnan(m.cell_data["jump"][0][0]).all()
+    d = table1.cse_case("rp", axial_steps=40, axial_displacement=1.5e-3)
+    d["output"] = {"vtk": True, "vtk_every": 40}
+    run_case(parse_case(d), tmp_path / "cse")
+    m = meshio.read(sorted((tmp_path / "cse" / "vtk").glob("*.vtu"))[-1])
+    kind = np.concatenate(m.cell_data["cell_kind"])
+    assert (kind == 0).sum() == 2 and (kind == 1).sum() == 1  # two quads, one zero-thickness interface quad
+    state = np.concatenate(m.cell_data["state"])[kind == 1][0]
+    assert state == 2  # plastic
+    disp = m.point_data["displacement"]
+    assert disp.shape == (m.points.shape[0], 3) and np.abs(disp).max() > 1e-4

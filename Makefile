@@ -10,7 +10,7 @@ OUT ?= out/paper
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --upgrade --quiet pip
-	$(BIN)/pip install --quiet -e ".[test]"
+	$(BIN)/pip install --quiet -e ".[test,fast]"
 	touch $(STAMP)
 
 setup: $(STAMP)

@@ -95,7 +95,7 @@ def test_softening_force_is_the_mohr_coulomb_closed_form_and_tends_to_the_residu
     assert angle == pytest.approx(table1.CRACK_ANGLE, abs=1e-4)
     expected = [analytic.mohr_coulomb_force(P, angle, c, tp, W)
                 for c, tp in zip(h["c"][sliding], h["tan_phi"][sliding])]
-    np.testing.assert_allclose(h["F_axial"][sliding], expected, rtol=1e-8)
+    np.testing.assert_allclose(h["F_axial"][sliding], expected, rtol=3e-8)  # r -> 0 to the Newton tolerance
     assert h["F_axial"][-1] < 1.02 * P * W and h["F_axial"][-1] > P * W
     assert np.all(np.diff(h["F_axial"][sliding]) < 0)
 
@@ -189,7 +189,8 @@ def test_condensed_tangent_is_the_schur_complement_of_exact_derivatives(ref):
         r, k, h = np.zeros(1), np.zeros(1), np.zeros((1, nd))
         sig = np.zeros((1, ref.points.shape[0], 6))
         K.ede_blocks(cell.grads, cell.wdet, d[None, :].copy(), cell.state, cell.p, cell.ce, cell.e_state,
-                     cell.gradf, cell.surface_params, np.array([dz]), np.array([True]), cell.trial.copy(), sig,
+                     cell.gradf, cell.surface_params, np.array([dz]), np.array([True]), np.array([False]),
+                     cell.trial.copy(), sig,
                      cell.e_trial.copy(), fe, ke, np.zeros(1, dtype=np.int64), r, k, h)
         f = np.zeros(nd)
         b = np.empty((3 if ref.dim == 2 else 6, nd))
@@ -231,7 +232,7 @@ def test_path_following_traces_the_same_softening_branch(ede_runs, tmp_path):
     sliding = h["n_plastic"] > 0
     expected = [analytic.mohr_coulomb_force(P, p["angle"][0], c, tp, W)
                 for c, tp in zip(h["c"][sliding], h["tan_phi"][sliding])]
-    np.testing.assert_allclose(h["F_axial"][sliding], expected, rtol=1e-8)
+    np.testing.assert_allclose(h["F_axial"][sliding], expected, rtol=3e-8)  # r -> 0 to the Newton tolerance
     ref, _, _, _ = ede_runs["q4"]
     u = np.linspace(1.5e-3, 1.1e-2, 30)
     np.testing.assert_allclose(np.interp(u, h["u_axial"], h["F_axial"]), np.interp(u, ref["u_axial"], ref["F_axial"]),

@@ -69,3 +69,29 @@ def test_bad_real_mesh_cases_name_the_key(tmp_path, edit, expected):
     with pytest.raises(CaseError) as err:
         build(parse_case(case, "c.toml"), "c.toml")
     assert expected in str(err.value) and "c.toml" in str(err.value)
+
+
+def test_local_tracking_gives_one_continuous_band_across_the_mesh(tmp_path):
+    """A small version of examples/band: the band starts in the weak inclusion (another material,
+    another group) and every next cut cell continues it from the point where the previous surface
+    leaves it, up to the boundary."""
+    import tomllib
+    from pathlib import Path
+
+    d = tomllib.loads((Path(__file__).resolve().parents[1] / "examples" / "band" / "band.toml").read_text())
+    d["mesh"].update(nx=10, ny=20, inclusion=[0.0, 0.036, 0.004, 0.044])
+    d["output"] = {"vtk": False}
+    d["loading"].update(axial_steps=150, max_steps=120, path_increment=1e-5)
+    s = run_case(parse_case(d), tmp_path)
+    emb = s.built.embeddeds
+    seg = np.vstack([g.segments[g.localized()] for g in emb])
+    regions = {g.region for g in emb if g.localized().size}
+    assert seg.shape[0] >= 10 and regions == {"weak", "bulk"}  # across the material boundary
+    # one chain: every segment but the first starts where another one ends
+    starts, ends = seg[:, 0], seg[:, 1]
+    linked = [np.min(np.linalg.norm(ends - p, axis=1)) < 1e-9 for p in starts]
+    assert sum(not x for x in linked) == 1
+    assert np.isclose(seg[:, :, 0].min(), seg[:, :, 0].min()) and (
+        np.isclose(seg[:, :, 1].max(), 0.08) or np.isclose(seg[:, :, 0].max(), 0.04))  # reaches the boundary
+    h = read_csv(tmp_path / "history.csv")
+    assert h["F_axial"][-1] < 0.95 * h["F_axial"].max()  # the specimen softens

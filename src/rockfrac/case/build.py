@@ -254,13 +254,17 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
             g = EmbeddedDruckerPrager(mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb),
-                                      band=emb.band.value, plane_strain=True, tracking=emb.tracking)
+                                      band=emb.band.value, plane_strain=True, tracking=emb.tracking,
+                                      max_cracks=emb.max_cracks)
         elif dp:
             g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section))
         else:
             g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu)
         g.region, g.cell_ids = region, cells
         groups.append(g)
+    from rockfrac.elements.ede import share_crack_paths
+
+    share_crack_paths([g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2], mesh.nodes)
     return groups
 
 

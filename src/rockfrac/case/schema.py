@@ -205,6 +205,8 @@ class EmbeddedSection(_Section):
         "'local': a cell next to a cut cell continues that cell's surface (a continuous crack path)")
     regions: list[str] | None = Field(None, description="regions that may localize (default: every "
                                       "drucker_prager region)")
+    max_cracks: int = Field(1, ge=1, description="tracking = 'local': most cracks started; further cuts "
+                            "continue them from their tips")
 
     @model_validator(mode="after")
     def _residual_below_peak(self) -> EmbeddedSection:
@@ -341,19 +343,21 @@ class LoadingSection(_Section):
 
 
 class LinearSolverName(str, Enum):
+    auto = "auto"
     superlu = "superlu"
     pardiso = "pardiso"
 
 
 class SolverSection(_Section):
-    linear: LinearSolverName = Field(LinearSolverName.superlu,
-                                     description="'superlu' (SciPy) or 'pardiso' (needs pypardiso)")
+    linear: LinearSolverName = Field(LinearSolverName.auto,
+                                     description="'auto' (the fastest installed: pardiso, else superlu), "
+                                     "'superlu' (SciPy) or 'pardiso' (needs pypardiso)")
 
     @model_validator(mode="after")
     def _solver_installed(self) -> SolverSection:
         from rockfrac.solve.linear import available
 
-        if self.linear.value not in available():
+        if self.linear.value != "auto" and self.linear.value not in available():
             raise ValueError(f"linear = {self.linear.value!r} is not installed here; available: {available()}")
         return self
     max_iterations: int = Field(25, ge=1)

@@ -79,8 +79,8 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
 
 
 @nb.njit(cache=True, parallel=True)
-def rp_points(frame, weight, djump, lam, aug, eps, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke, status,
-              switched):
+def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
+              status, switched):
     """RP CSE at all points: augmented Lagrangian (paper eq. 32-33) with the law's return map.
 
     Element dofs (n, 6): (minus x, minus y, plus x, plus y, lambda x, lambda y); lam (n, 2)
@@ -93,6 +93,8 @@ def rp_points(frame, weight, djump, lam, aug, eps, s_old, d_old, mode_prev, p, s
     state solves eq. (34) and the surface is rigid until F(lambda) = 0.
     mode_prev: mode of each point in the previous iterate (a change counts as a switch). eps (n,):
     perturbed-Lagrangian weight of constrained junction pairs (0 elsewhere), see CohesiveRP.
+    pinned (n,): held constrained in this iteration whatever their trial (active-set pinning, see
+    CohesiveRP).
     """
     comp = np.empty(2)
     comp[0] = 1.0 / aug
@@ -103,9 +105,19 @@ def rp_points(frame, weight, djump, lam, aug, eps, s_old, d_old, mode_prev, p, s
         h = np.empty(2)
         h[0] = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
         h[1] = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
-        if h[0] == 0.0 and h[1] == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
+        if h[0] == 0.0 and h[1] == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
             _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
             status[i] = 1
+        elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
+            s_new[i, :] = s_old[i, :]
+            s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h[0]
+            s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h[1]
+            s_new[i, S_DGAMMA] = 0.0
+            s_new[i, S_MODE] = 0.0
+            d_new[i, :, :] = 0.0
+            d_new[i, 0, 0] = aug
+            d_new[i, 1, 1] = aug
+            status[i] = 0
         else:
             s_lam = s_old[i].copy()  # return from T_old := lambda (local frame)
             s_lam[S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]

@@ -154,14 +154,24 @@ class CohesiveRP(_CohesiveGroup):
     """
 
     JUNCTION_EPS = 1e-8
+    PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
 
     def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float,
                  junction: np.ndarray | None = None):
         super().__init__(points, law)
         self.aug = float(augmentation)
         self.eps = np.where(junction, self.JUNCTION_EPS, 0.0) if junction is not None else np.zeros(points.n)
+        self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step
+        self._pinned = np.zeros(points.n, dtype=bool)
+        self._released = np.zeros(points.n, dtype=bool)  # pinned once and let go in this step
         self.n_extra = 2 * points.n
         self.offset = -1
+
+    def begin_step(self) -> None:
+        super().begin_step()
+        self._flips[:] = 0
+        self._pinned[:] = False
+        self._released[:] = False
 
     def set_offset(self, offset: int) -> None:
         """Number the multiplier dofs from ``offset`` on."""
@@ -196,10 +206,28 @@ class CohesiveRP(_CohesiveGroup):
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, S_MODE].copy()
-        cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.eps, self.state,
-                      self.tangent, mode_prev, self.p, self.trial, self.trial_tangent, fe, ke,
+        cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.eps, self._pinned,
+                      self.state, self.tangent, mode_prev, self.p, self.trial, self.trial_tangent, fe, ke,
                       self.status, switched)
+        # active-set pinning: a point chattering between constrained and plastic (on its yield
+        # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
+        # only if its traction is inside the surface, else it is released (once per step)
+        self._flips += switched
+        self._pinned |= (self._flips >= self.PIN_AFTER_FLIPS) & ~self._released
+        local = 0.0
+        if self._pinned.any():
+            s = self.trial
+            f = np.array([_law.yield_function(s[i, S_TT], s[i, S_TN], s[i, S_EPSN], s[i, S_EPSS], self.p)
+                          for i in np.flatnonzero(self._pinned)])
+            scale = max(self.law.c_p, self.law.chi_p, 1.0)
+            outside = f > 1e-9 * scale
+            if outside.any():
+                idx = np.flatnonzero(self._pinned)[outside]
+                self._pinned[idx] = False
+                self._released[idx] = True
+                local = float(f[outside].max() / scale)
         bad = np.flatnonzero(self.status < 0)
         msg = (f"RP return map failed at interface points {bad[:5].tolist()} (if the law softens faster "
                f"than the augmentation r = {self.aug:.3g} Pa/m, raise [cohesive] augmentation)") if bad.size else ""
-        return Evaluation(fe, ke, ok=not bad.size, n_switched=int(switched.sum()), message=msg)
+        return Evaluation(fe, ke, ok=not bad.size, n_switched=int(switched.sum()), message=msg,
+                          local_residual=max(local, 1.0) if local > 0 else 0.0)

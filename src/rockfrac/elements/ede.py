@@ -18,7 +18,7 @@ from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import Evaluation
 from rockfrac.fem.reference import ReferenceElement
-from rockfrac.laws.bifurcation import localization_at
+from rockfrac.laws.bifurcation import localization_at, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw, strengths
 
@@ -51,20 +51,108 @@ def _band(n: np.ndarray) -> float:
     return a + math.pi if a <= -0.5 * math.pi else a
 
 
+class CrackPaths:
+    """Crack paths across the EDE groups of a model (2D): cell adjacency over the global cell
+    numbering, the cut state of every cell whatever its group, the number of cracks started."""
+
+    def __init__(self, nodes: np.ndarray, groups: list):
+        self.nodes = nodes
+        self.groups = groups
+        self.cracks = 0
+        ids = [getattr(g, "cell_ids", np.arange(g.cells.shape[0])) for g in groups]
+        n_cells = int(max(i.max(initial=-1) for i in ids)) + 1
+        self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each global cell
+        cells = []
+        for k, (g, i) in enumerate(zip(groups, ids)):
+            self.owner[i, 0], self.owner[i, 1] = k, np.arange(i.size)
+            cells.append((i, g.cells))
+        self.nbr: dict[int, list[tuple[int, int, int]]] = {}
+        gids = np.concatenate([i for i, _ in cells])
+        conn = np.vstack([c for _, c in cells])
+        n = conn.shape[1]
+        pairs = np.stack([conn, np.roll(conn, -1, axis=1)], axis=-1).reshape(-1, 2)
+        owner = np.repeat(gids, n)
+        key = np.sort(pairs, axis=1)
+        order = np.lexsort((key[:, 1], key[:, 0]))
+        k = key[order]
+        for i in np.flatnonzero(np.all(k[1:] == k[:-1], axis=1)):  # once, at set-up
+            c1, c2 = int(owner[order[i]]), int(owner[order[i + 1]])
+            a, b = int(k[i, 0]), int(k[i, 1])
+            self.nbr.setdefault(c1, []).append((c2, a, b))
+            self.nbr.setdefault(c2, []).append((c1, a, b))
+
+    def _cell(self, gcell: int):
+        g, local = self.owner[gcell]
+        return (None, -1) if g < 0 else (self.groups[g], int(local))
+
+    def is_cut(self, gcell: int) -> bool:
+        g, local = self._cell(gcell)
+        return g is not None and g.e_state[local, K.E_LOC] == 1.0
+
+    def cut_neighbours(self, gcell: int) -> list[int]:
+        return [c for c, _, _ in self.nbr.get(gcell, []) if self.is_cut(c)]
+
+    def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """(point, neighbour normal) where a cut neighbour's surface ends on the edge shared with gcell."""
+        for c, a, b in self.nbr.get(gcell, []):
+            if not self.is_cut(c):
+                continue
+            g, local = self._cell(c)
+            xa, xb = self.nodes[a, :2], self.nodes[b, :2]
+            size = np.linalg.norm(xb - xa)
+            for p in g.segments[local]:  # p on edge ab: collinear, between its ends
+                cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
+                along = np.dot(p - xa, xb - xa) / size**2
+                if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
+                    return p.copy(), g.e_state[local, K.E_N:K.E_N + 3].copy()
+        return None
+
+    def tip_cells(self, group) -> set[int]:
+        """Local indices in ``group`` of its uncut cells at a crack tip."""
+        k = self.groups.index(group)
+        out = set()
+        for g in self.groups:
+            ids = getattr(g, "cell_ids", np.arange(g.cells.shape[0]))
+            for e in np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0):
+                for c, _, _ in self.nbr.get(int(ids[e]), []):
+                    gk, local = self.owner[c]
+                    if gk == k and not self.is_cut(c) and self.tip(c) is not None:
+                        out.add(int(local))
+        return out
+
+
+def share_crack_paths(groups: list, nodes: np.ndarray) -> None:
+    """Make the EDE groups of a model share one crack-path registry (crack tracking across regions)."""
+    if groups:
+        paths = CrackPaths(nodes, groups)
+        for g in groups:
+            g._paths = paths
+
+
 class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
     checkpoint_attrs = ("state", "sigma", "e_state", "gradf", "active", "anchor", "segments", "onsets",
-                        "last_event")
+                        "last_event", "crack_count")
+
+    @property
+    def crack_count(self) -> int:
+        return self.paths.cracks
+
+    @crack_count.setter
+    def crack_count(self, value: int) -> None:
+        self.paths.cracks = value
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
-                 surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none"):
+                 surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none",
+                 max_cracks: int = 1):
         super().__init__(nodes, cells, ref, law)
         if band not in ("positive", "negative"):
             raise ValueError(f"band must be 'positive' or 'negative', got {band!r}")
         if tracking not in ("none", "local"):
             raise ValueError(f"tracking must be 'none' or 'local', got {tracking!r}")
         self.tracking = tracking
+        self.max_cracks = max_cracks  # tracking = "local": most cracks started (the others are continued)
         self.surface = surface
         self.band = band
         self.plane_strain = plane_strain
@@ -88,6 +176,9 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self._h_prev = np.zeros((n_el, nd))
         self._k_prev = np.zeros(n_el)
         self.local_residual = 0.0  # max |r| / c_p of the last evaluation
+        self._flips = np.zeros(n_el, dtype=np.int64)  # slide <-> stick switches in the current step
+        self._stuck = np.zeros(n_el, dtype=bool)
+        self._released = np.zeros(n_el, dtype=bool)
         self.last_event = 1.0  # min det ratio of the committed state over cells that may localize
 
     # -- state -----------------------------------------------------------------------------
@@ -96,6 +187,9 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self.e_trial[:] = self.e_state
         self._dz[:] = 0.0
         self._k_prev[:] = 0.0
+        self._flips[:] = 0
+        self._stuck[:] = False
+        self._released[:] = False
 
     def commit(self) -> None:
         super().commit()
@@ -118,14 +212,27 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         mode_prev = self.e_trial[:, K.E_MODE].copy()
         fe = np.empty((n_el, nd))
         ke = np.empty((n_el, nd, nd))
+        slide &= ~self._stuck
         K.ede_blocks(self.grads, self.wdet, d, self.state, self.p, self.ce, self.e_state, self.gradf,
-                     self.surface_params, self._dz, slide, self.trial, self.trial_sigma, self.e_trial, fe, ke,
-                     self.status, self._r_prev, self._k_prev, self._h_prev)
+                     self.surface_params, self._dz, slide, self._stuck, self.trial, self.trial_sigma, self.e_trial,
+                     fe, ke, self.status, self._r_prev, self._k_prev, self._h_prev)
         self._d_prev[:] = d
         cp = np.maximum(self.e_state[:, K.E_CP], 1.0)
-        self.local_residual = float(np.max(np.abs(self._r_prev) / cp, initial=0.0))
+        # active-set pinning: a cell chattering between sliding and sticking is held rigid for the
+        # rest of the step; consistent only if its trial stays inside the surface, else released
+        stuck_r = np.where(self._stuck, self._r_prev, 0.0)
+        out = self._stuck & (stuck_r > 1e-9 * cp)
+        self._stuck[out] = False
+        self._released |= out
+        sliding_r = np.where(self._stuck, 0.0, self._r_prev)
+        self.local_residual = float(max(np.max(np.abs(sliding_r) / cp, initial=0.0),
+                                        1.0 if out.any() else 0.0))
+        self._r_prev[self._stuck] = 0.0
         loc = self.e_state[:, K.E_LOC] == 1.0
-        switched = int(np.sum(loc & (self.e_trial[:, K.E_MODE] != mode_prev)))
+        flipped = loc & (self.e_trial[:, K.E_MODE] != mode_prev)
+        self._flips += flipped
+        self._stuck |= (self._flips >= 2) & ~self._released & loc
+        switched = int(np.sum(flipped))
         bad = np.flatnonzero(self.status < 0)
         if not bad.size:
             return Evaluation(fe, ke, n_switched=switched, local_residual=self.local_residual)
@@ -138,23 +245,61 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
 
     # -- bifurcation and localization ------------------------------------------------------
     def _candidates(self, state: np.ndarray) -> np.ndarray:
-        """Cells not yet localized with a Gauss point on the cone in the last update."""
+        """Cells not yet localized with a Gauss point on the cone in the last update (with local
+        tracking, the crack-tip cells are added whatever their state: see _scan)."""
         plastic = (state[..., S_MODE] == MODE_CONE).any(axis=1)
         return np.flatnonzero(plastic & (self.e_trial[:, K.E_LOC] == 0.0))
 
     def event(self) -> float:
         """Min det A / det A^e (eq. 7-8) over the trial (converged, uncommitted) plastic points of
         cells that may still localize; 1 if there are none."""
-        return self._scan(self.trial, self.trial_sigma)[0]
+        return self._scan(self.trial, self.trial_sigma, exact_cells=False)[0]
 
-    def _scan(self, state: np.ndarray, sigma: np.ndarray):
-        best, where = 1.0, {}
-        for e in self._candidates(state):
-            for q in np.flatnonzero(state[e, :, S_MODE] == MODE_CONE):
-                loc = localization_at(self.law, sigma[e, q], plane_strain=self.plane_strain)
-                if loc.min_ratio < where.get(e, (np.inf,))[0]:
-                    where[e] = (loc.min_ratio, q, loc)
-                best = min(best, loc.min_ratio)
+    SCREEN_SWEEP = 90  # in-plane normals of the compiled screen (plane strain)
+    SCREEN_MARGIN = 0.05  # points whose screened ratio is below this get the exact search
+
+    def _scan(self, state: np.ndarray, sigma: np.ndarray, eligible: np.ndarray | None = None,
+              exact_cells: bool = True):
+        """Min det ratio over the plastic points of cells that may localize, and per such cell its
+        lowest (ratio, point, Localization).
+
+        Plane strain: a compiled sweep screens every point; the exact search (localization_at) runs
+        at the lowest screened point overall (the returned minimum, exact where it can be near zero)
+        and, if exact_cells, at the lowest point of every eligible cell (default: all) screened below
+        SCREEN_MARGIN -- where an onset can happen.
+        """
+        cells = self._candidates(state)
+        tips = self._tip_cells() if self.tracking == "local" else np.zeros(0, dtype=np.int64)
+        cells = np.union1d(cells, tips).astype(np.int64)
+        if cells.size == 0:
+            return 1.0, {}
+        qmask = state[cells, :, S_MODE] == MODE_CONE
+        qmask[np.isin(cells, tips)] = True  # a crack tip cell: its stress direction decides (eq. 8)
+        ce, qi = np.nonzero(qmask)
+        e_of = cells[ce]
+        if e_of.size == 0:
+            return 1.0, {}
+        if not self.plane_strain:  # 3D: the exact search at every point
+            screened = np.full(e_of.size, -np.inf)
+        else:
+            screened = screen_plane_strain(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
+                                           self.SCREEN_SWEEP)
+        order = np.lexsort((screened, e_of))  # by cell, lowest point first
+        first = order[np.concatenate(([True], e_of[order][1:] != e_of[order][:-1]))]
+        lowest = first[screened[first] <= self.SCREEN_MARGIN]  # each cell's lowest point, if small
+        if eligible is not None:
+            lowest = lowest[np.isin(e_of[lowest], eligible)]
+        picks = set(lowest.tolist()) if exact_cells else set()
+        picks.add(int(np.argmin(screened)))
+        where, best = {}, float(screened.min())
+        for k in picks:
+            e, q = int(e_of[k]), int(qi[k])
+            loc = localization_at(self.law, sigma[e, q], plane_strain=self.plane_strain)
+            best = min(best, loc.min_ratio) if k == int(np.argmin(screened)) else best
+            if screened[k] <= self.SCREEN_MARGIN and loc.min_ratio < where.get(e, (np.inf,))[0]:
+                where[e] = (loc.min_ratio, q, loc)
+        if where:
+            best = min(best, min(v[0] for v in where.values()))
         return best, where
 
     onset_tol = 1e-4  # localize when min det A / det A^e <= this (the stepping lands within it)
@@ -169,63 +314,55 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         new crack through its centroid; a cell beside a crack but not at its tip waits (it stays a
         Drucker-Prager cell) until the crack reaches it.
         """
-        best, where = self._scan(self.state, self.sigma)
+        eligible = None
+        if self.tracking == "local" and self.paths.cracks >= self.max_cracks:
+            eligible = self._tip_cells()  # only crack tips can open: no new crack allowed
+        best, where = self._scan(self.state, self.sigma, eligible)
         ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
         if self.tracking == "none":
             for ratio, e in ready:
                 self._open(e, ratio, where[e][2])
             return best
         pending = [e for _, e in ready]
+        tips = set(self._tip_cells().tolist())
         progress = True
-        while pending and progress:  # a newly cut cell may give the next one its tip
+        while pending and progress:  # a newly cut cell may give the next one its tip...
             progress = False
             for e in list(pending):
                 tip = self._tip(e)
-                if tip is None and self._cut_neighbours(e):
-                    continue  # beside a crack, not at its tip: wait
+                plastic = (self.state[e, :, S_MODE] == MODE_CONE).any()
+                if tip is not None and e not in tips and not plastic:
+                    continue  # ...but an elastic cell only from a tip that existed before this step
+                if tip is None and (self._cut_neighbours(e) or self.paths.cracks >= self.max_cracks):
+                    continue  # beside a crack but not at its tip, or no new crack allowed: wait
+                if tip is None:
+                    self.paths.cracks += 1
                 self._open(e, where[e][0], where[e][2], tip)
                 pending.remove(e)
                 progress = True
         return best
 
     # -- crack path (2D) ---------------------------------------------------------------------
-    def _edges(self) -> dict[int, list[tuple[int, int, int]]]:
-        """Cell -> [(neighbour, node a, node b)] over shared edges (2D), built once."""
-        if getattr(self, "_nbr", None) is None:
-            cells = self.cells
-            n = cells.shape[1]
-            pairs = np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
-            owner = np.repeat(np.arange(cells.shape[0]), n)
-            key = np.sort(pairs, axis=1)
-            order = np.lexsort((key[:, 1], key[:, 0]))
-            k = key[order]
-            same = np.flatnonzero(np.all(k[1:] == k[:-1], axis=1))
-            nbr: dict[int, list[tuple[int, int, int]]] = {}
-            for i in same:
-                c1, c2 = owner[order[i]], owner[order[i + 1]]
-                a, b = k[i]
-                nbr.setdefault(int(c1), []).append((int(c2), int(a), int(b)))
-                nbr.setdefault(int(c2), []).append((int(c1), int(a), int(b)))
-            self._nbr = nbr
-        return self._nbr
+    @property
+    def paths(self) -> CrackPaths:
+        """The crack-path registry this group shares with the other EDE groups of the model."""
+        if getattr(self, "_paths", None) is None:
+            self._paths = CrackPaths(self.nodes, [self])
+        return self._paths
+
+    def _global(self, e: int) -> int:
+        return int(self.cell_ids[e]) if hasattr(self, "cell_ids") else int(e)
+
+    def _tip_cells(self) -> np.ndarray:
+        """This group's uncut cells where a cut cell's surface ends on their shared edge (crack tips)."""
+        return np.array(sorted(self.paths.tip_cells(self)), dtype=np.int64)
 
     def _cut_neighbours(self, e: int) -> list[int]:
-        return [c for c, _, _ in self._edges().get(e, []) if self.e_state[c, K.E_LOC] == 1.0]
+        return self.paths.cut_neighbours(self._global(e))
 
     def _tip(self, e: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, neighbour normal) where a cut neighbour's surface ends on the edge shared with e."""
-        for c, a, b in self._edges().get(e, []):
-            if self.e_state[c, K.E_LOC] != 1.0:
-                continue
-            xa, xb = self.nodes[a, :2], self.nodes[b, :2]
-            size = np.linalg.norm(xb - xa)
-            for p in self.segments[c]:
-                # p on segment ab: collinear and between the ends
-                cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
-                along = np.dot(p - xa, xb - xa) / size**2
-                if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
-                    return p.copy(), self.e_state[c, K.E_N:K.E_N + 3].copy()
-        return None
+        return self.paths.tip(self._global(e))
 
     def _choose(self, loc, reference: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """The normal of the requested conjugate band (band angle > 0 or < 0), or the one closest to a

@@ -53,6 +53,8 @@ E_SIGN = 17  # s, the slip sense along t
 E_MT = 18  # dJ / d dzeta of the iterate, slots 18..20 (path following)
 N_E = 21
 
+K_FLOOR = 1e-2  # smallest |dr/d dzeta| relative to the scale of its terms (see _localized)
+
 ST_OK = 0
 ST_NOT_UNIQUE = -2  # dr/d dzeta = 0: the jump does not enter the local equation
 ST_DP_FAIL = -3
@@ -89,7 +91,7 @@ def _dot6(a, b):
 
 
 @nb.njit(cache=True)
-def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, sigma, e_new, fe, ke, h_vec):
+def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, stick, sigma, e_new, fe, ke, h_vec):
     """One localized cell at the jump increment dz (module doc): stresses, condensed fe and ke,
     new EDE state; h_vec (nd,) receives dr/dd. Returns (status, r, k = dr/d dzeta, dz used)."""
     n_qp, n_nodes, dim = grads.shape
@@ -148,7 +150,7 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, sigma, 
     c_n, tphi_n, _, _, _, _ = strengths(gamma_n, c_p, law)
     f_tr = s * q_tr + tphi_n * min(p_tr, 0.0) - c_n
     scale = max(c_p, abs(q_tr), abs(p_tr), 1.0)
-    plastic = slide or f_tr > 1.0e-12 * scale
+    plastic = (slide or f_tr > 1.0e-12 * scale) and not stick
     if not plastic:
         dz = 0.0
     dz = max(dz, 0.0)
@@ -166,9 +168,17 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, sigma, 
     pv = p_tr - dz * (a_p[0] * m[0] + a_p[1] * m[1] + a_p[2] * m[2])
     comp = 1.0 if pv < 0.0 else 0.0
     r = s * qv + tphi * min(pv, 0.0) - c
-    kz = (-s * (a_q[0] * mt[0] + a_q[1] * mt[1] + a_q[2] * mt[2])
-          - tphi * comp * (a_p[0] * mt[0] + a_p[1] * mt[1] + a_p[2] * mt[2])
-          + (dtphi * min(pv, 0.0) - dc) * dgam)
+    t_q = -s * (a_q[0] * mt[0] + a_q[1] * mt[1] + a_q[2] * mt[2])
+    t_p = -tphi * comp * (a_p[0] * mt[0] + a_p[1] * mt[1] + a_p[2] * mt[2])
+    t_s = (dtphi * min(pv, 0.0) - dc) * dgam
+    kz = t_q + t_p + t_s
+    # dr/d dzeta is a difference of large terms (shear unloading, normal relaxation, softening) and
+    # crosses zero during softening; eliminating dzeta with k ~ 0 is ill-conditioned, so |k| is
+    # bounded below by K_FLOOR of its terms' scale: the dzeta update becomes a damped Newton step
+    # (r -> 0 is still required at convergence, so the converged state is unchanged)
+    floor = K_FLOOR * (abs(t_q) + abs(t_p) + abs(t_s))
+    if abs(kz) < floor:
+        kz = floor if kz >= 0.0 else -floor
     status = ST_OK
     if plastic and not abs(kz) > 1.0e-30:
         status = ST_NOT_UNIQUE
@@ -221,13 +231,13 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, sigma, 
     for k in range(3):
         e_new[E_MT + k] = mt[k] if plastic else 0.0
     if not plastic:
-        return status, 0.0, 0.0, dz
+        return status, (f_tr if stick else 0.0), 0.0, dz  # a stuck cell reports its trial yield value
     return status, r, kz, dz
 
 
 @nb.njit(cache=True, parallel=True)
-def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, dp_new, sigma, e_new, fe, ke,
-               status, r_out, k_out, h_out):
+def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, stick, dp_new, sigma, e_new, fe,
+               ke, status, r_out, k_out, h_out):
     """Drucker-Prager cells, and embedded-discontinuity cells where localized (module doc).
 
     grads (n_el, n_qp, n_nodes, dim), wdet (n_el, n_qp), ue (n_el, nd); dp_old/dp_new (n_el, n_qp,
@@ -235,7 +245,8 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
     gradf (n_el, n_qp, 3) grad f_S; law: Sect. 4.1 parameters; dz (n_el,) the jump increments of
     this iterate (updated in place where clipped); slide (n_el,) bool: the cell slides whatever its
     trial (it slid in the last iterate and its updated dzeta is positive, or it slid in the last
-    step and this is the step's first iterate). r_out, k_out
+    step and this is the step's first iterate); stick (n_el,) bool: held rigid (active-set pinning of
+    a chattering cell; r_out then returns its trial yield value). r_out, k_out
     (n_el,), h_out (n_el, nd): the local residual r, dr/d dzeta and dr/dd for the next update.
     """
     for e in nb.prange(grads.shape[0]):
@@ -245,7 +256,7 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
             dp_new[e, :, :] = dp_old[e]  # the bulk is frozen: plastic strain held, elastic updates
             dp_new[e, :, S_MODE] = 0.0
             st, r, kz, dzu = _localized(grads[e], wdet[e], ue[e], dp_old[e, :, 0:6], ce, gradf[e], e_old[e],
-                                        law, dz[e], slide[e], sigma[e], e_new[e], fe[e], ke[e], h_out[e])
+                                        law, dz[e], slide[e], stick[e], sigma[e], e_new[e], fe[e], ke[e], h_out[e])
             status[e], r_out[e], k_out[e], dz[e] = st, r, kz, dzu
             continue
         e_new[e, :] = e_old[e]

@@ -557,3 +557,31 @@ def peak_cohesion(sigma: np.ndarray, n: np.ndarray, tan_phi: float) -> float:
     t = _tensor(sigma) @ n
     tn = float(t @ n)
     return float(np.linalg.norm(t - tn * n)) + min(tn, 0.0) * tan_phi
+
+
+# --------------------------------------------------------------------------------------------
+# screening many points at once (meshes of many cells)
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True, parallel=True)
+def screen_plane_strain(sigma, p, ce, n_sweep):
+    """Min over a sweep of n_sweep in-plane normals of det A / det A^e (eq. 7-8, f and g at each
+    stress), for many points: sigma (n, 6) [Pa] -> (n,). A coarse bound from above of the true
+    minimum (within the sweep's resolution): refine with localization_plane_strain where it is small.
+    """
+    n = sigma.shape[0]
+    out = np.empty(n)
+    for i in nb.prange(n):
+        c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
+        best = np.inf
+        nrm = np.zeros(3)
+        for k in range(n_sweep):
+            t = np.pi * k / n_sweep
+            nrm[0] = math.cos(t)
+            nrm[1] = math.sin(t)
+            r = _ratio(c, ce, nrm)
+            if r < best:
+                best = r
+        out[i] = best
+    return out

@@ -77,7 +77,10 @@ class Pardiso:
 
     def __del__(self) -> None:
         if getattr(self, "_solver", None) is not None:
-            self._solver.free_memory(everything=True)
+            try:
+                self._solver.free_memory(everything=True)
+            except Exception:  # noqa: BLE001 -- at interpreter shutdown scipy may already be gone
+                pass
 
 
 SOLVERS = {"superlu": SuperLU, "pardiso": Pardiso}
@@ -95,8 +98,14 @@ def available() -> list[str]:
     return names
 
 
+PREFERENCE = ("pardiso", "superlu")  # fastest first, measured in benchmarks/README.md
+
+
 def make_solver(name: str) -> LinearSolver:
-    """Backend by name; raises ValueError listing the available ones."""
+    """Backend by name ('auto': the fastest installed); raises ValueError listing the available ones."""
+    if name == "auto":
+        installed = available()
+        return SOLVERS[next(n for n in PREFERENCE if n in installed)]()
     if name not in SOLVERS:
         raise ValueError(f"unknown linear solver {name!r}; known: {sorted(SOLVERS)}")
     try:

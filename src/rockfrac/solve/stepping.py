@@ -140,8 +140,11 @@ def run_stages(
                 size["load"] = min(size["load"], 1.0 - lam)
                 res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
-            if not res.converged and mode == "load" and stage.path is not None:
-                forced = True  # a limit point under load control: follow the path from here
+            if (not res.converged and mode == "load" and stage.path is not None and not forced
+                    and np.any(stage.path.measure()(u)[1])):
+                # a limit point under load control, and a path measure that can respond (a
+                # discontinuity exists): follow the path from here; otherwise cut the load step back
+                forced = True
                 log(f"  {stage.name}: load-controlled step from lam={lam:.6f} failed ({res.message}); "
                     "switching to path control")
                 continue

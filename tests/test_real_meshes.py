@@ -95,3 +95,6 @@ def test_local_tracking_gives_one_continuous_band_across_the_mesh(tmp_path):
         np.isclose(seg[:, :, 1].max(), 0.08) or np.isclose(seg[:, :, 0].max(), 0.04))  # reaches the boundary
     h = read_csv(tmp_path / "history.csv")
     assert h["F_axial"][-1] < 0.95 * h["F_axial"].max()  # the specimen softens
+    # the crack map of the last step draws exactly these segments
+    assert (tmp_path / "crack_map.png").stat().st_size > 10_000
+    assert f"crack_map.png: step {s.result.steps}, {seg.shape[0]} crack segments" in (tmp_path / "run.log").read_text()

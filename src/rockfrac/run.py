@@ -219,5 +219,14 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
             points.close()
     wall = time.perf_counter() - t0
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
+    if opts.picture:
+        from rockfrac.output.crack_map import save_crack_map
+        from rockfrac.output.fields import step_output
+        from rockfrac.output.plots import magnification
+
+        mag = magnification(built, result.u)
+        cracks = save_crack_map(out / "crack_map.png", step_output(built, result.u), mag,
+                                title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}")
+        log(f"crack_map.png: step {result.steps}, {cracks.opening.size} crack segments, deformed x{mag:g}")
     log_fh.close()
     return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built, warnings)

@@ -373,6 +373,8 @@ class OutputSection(_Section):
     vtk_every: int = Field(1, ge=1, description="write every n-th converged step to the series")
     checkpoint_every: int = Field(0, ge=0, description="save a checkpoint every n converged steps (0: never); "
                                   "rockfrac run --resume continues from the last one")
+    picture: bool = Field(True, description="draw crack_map.png: the deformed mesh at the last converged step, "
+                          "coloured by the plastic multiplier, with the yielded cracks coloured by their jump")
 
 
 class Case(_Section):

@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= out/paper
 
-.PHONY: setup paper test bench clean
+.PHONY: setup paper test bench bench-peer clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -23,6 +23,10 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
+
+# rockfrac against Akantu (installed into its own .venv-akantu by the script)
+bench-peer: $(STAMP)
+	$(BIN)/python benchmarks/peer.py
 
 clean:
 	rm -rf $(VENV) out

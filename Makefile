@@ -30,3 +30,10 @@ bench-peer: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out
+
+.PHONY: kernels scaling
+kernels: $(STAMP)
+	$(BIN)/python benchmarks/kernels.py
+
+scaling: $(STAMP)
+	$(BIN)/python benchmarks/scaling.py

@@ -52,8 +52,12 @@ class Model:
         self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
         data = np.zeros(self.pattern.nnz)
         for g, slots in zip(self.groups, self.pattern.slots):
-            if g.constant:
+            if g.constant and hasattr(g, "assemble_into"):
+                g.assemble_into(data, slots)
+            elif g.constant:
                 scatter_matrix(data, slots, g.ke)
+            if hasattr(g, "reuse_buffers"):  # its element arrays are scattered at once: keep them
+                g.reuse_buffers = True
         self._const_data = data
         self._const_matrix = self.pattern.matrix(data)
         redundant = [g.redundant_extras(self.dirichlet) for g in self.groups if hasattr(g, "redundant_extras")]

@@ -18,7 +18,7 @@ from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import Evaluation
 from rockfrac.fem.reference import ReferenceElement
-from rockfrac.laws.bifurcation import localization_at, screen_plane_strain
+from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw, strengths
 
@@ -210,8 +210,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
                 / self._k_prev[sliding]
             slide = sliding & (self._dz > 0.0)
         mode_prev = self.e_trial[:, K.E_MODE].copy()
-        fe = np.empty((n_el, nd))
-        ke = np.empty((n_el, nd, nd))
+        fe, ke = self.element_buffers()
         slide &= ~self._stuck
         K.ede_blocks(self.grads, self.wdet, d, self.state, self.p, self.ce, self.e_state, self.gradf,
                      self.surface_params, self._dz, slide, self._stuck, self.trial, self.trial_sigma, self.e_trial,
@@ -289,15 +288,25 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         lowest = first[screened[first] <= self.SCREEN_MARGIN]  # each cell's lowest point, if small
         if eligible is not None:
             lowest = lowest[np.isin(e_of[lowest], eligible)]
+        lowest_point = int(np.argmin(screened))
         picks = set(lowest.tolist()) if exact_cells else set()
-        picks.add(int(np.argmin(screened)))
+        picks.add(lowest_point)
+        picks = sorted(picks)
         where, best = {}, float(screened.min())
-        for k in picks:
-            e, q = int(e_of[k]), int(qi[k])
-            loc = localization_at(self.law, sigma[e, q], plane_strain=self.plane_strain)
-            best = min(best, loc.min_ratio) if k == int(np.argmin(screened)) else best
-            if screened[k] <= self.SCREEN_MARGIN and loc.min_ratio < where.get(e, (np.inf,))[0]:
-                where[e] = (loc.min_ratio, q, loc)
+        if self.plane_strain:  # the exact minima of all picks in one compiled pass; the full
+            # Localization (normals, slips) only where a cell can open now
+            ratios = min_ratios_plane_strain(self.law, sigma[e_of[picks], qi[picks]])
+        else:
+            locs = [localization_at(self.law, sigma[int(e_of[k]), int(qi[k])], plane_strain=False) for k in picks]
+            ratios = [loc.min_ratio for loc in locs]
+        for n_pick, k in enumerate(picks):
+            e, q, ratio = int(e_of[k]), int(qi[k]), float(ratios[n_pick])
+            best = min(best, ratio) if k == lowest_point else best
+            if screened[k] <= self.SCREEN_MARGIN and ratio < where.get(e, (np.inf,))[0]:
+                where[e] = (ratio, q, None if self.plane_strain else locs[n_pick])
+        for e, (ratio, q, loc) in where.items():
+            if loc is None and ratio <= self.onset_tol:
+                where[e] = (ratio, q, localization_at(self.law, sigma[e, q], plane_strain=True))
         if where:
             best = min(best, min(v[0] for v in where.values()))
         return best, where

@@ -33,8 +33,10 @@ import math
 import numba as nb
 import numpy as np
 
-from rockfrac.elements.plastic_solid import dp_element, integrate_point, point_strain
+from rockfrac.elements.plastic_solid import dp_element_into, element_scratch, integrate_point, n_chunks, point_strain
 from rockfrac.fem.kinematics import b_matrix
+from rockfrac.laws.drucker_prager import elastic_matrix as dp_elastic_matrix
+from rockfrac.laws.drucker_prager import moduli as dp_moduli
 from rockfrac.laws.drucker_prager_params import S_MODE
 from rockfrac.laws.mohr_coulomb_softening import gamma_of, strengths
 
@@ -249,16 +251,31 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
     a chattering cell; r_out then returns its trial yield value). r_out, k_out
     (n_el,), h_out (n_el, nd): the local residual r, dr/d dzeta and dr/dd for the next update.
     """
-    for e in nb.prange(grads.shape[0]):
-        r_out[e] = 0.0
-        k_out[e] = 0.0
-        if e_old[e, E_LOC] == 1.0:
-            dp_new[e, :, :] = dp_old[e]  # the bulk is frozen: plastic strain held, elastic updates
-            dp_new[e, :, S_MODE] = 0.0
-            st, r, kz, dzu = _localized(grads[e], wdet[e], ue[e], dp_old[e, :, 0:6], ce, gradf[e], e_old[e],
-                                        law, dz[e], slide[e], stick[e], sigma[e], e_new[e], fe[e], ke[e], h_out[e])
-            status[e], r_out[e], k_out[e], dz[e] = st, r, kz, dzu
-            continue
-        e_new[e, :] = e_old[e]
-        st = dp_element(grads[e], wdet[e], ue[e], dp_old[e], dp_p, dp_new[e], sigma[e], fe[e], ke[e])
-        status[e] = ST_DP_FAIL if st < 0 else ST_OK
+    n = grads.shape[0]
+    dp_k, dp_mu = dp_moduli(dp_p)
+    dp_ce = dp_elastic_matrix(dp_p)
+    m = n_chunks(n)
+    for ch in nb.prange(m):
+        scratch = element_scratch(grads.shape[2], grads.shape[3])
+        for e in range(ch * n // m, (ch + 1) * n // m):
+            _ede_cell(e, grads, wdet, ue, dp_old, dp_p, dp_k, dp_mu, dp_ce, scratch, ce, e_old, gradf, law, dz,
+                      slide, stick, dp_new, sigma, e_new, fe, ke, status, r_out, k_out, h_out)
+
+
+@nb.njit(cache=True)
+def _ede_cell(e, grads, wdet, ue, dp_old, dp_p, dp_k, dp_mu, dp_ce, scratch, ce, e_old, gradf, law, dz, slide, stick,
+              dp_new, sigma, e_new, fe, ke, status, r_out, k_out, h_out):
+    """Cell e of :func:`ede_blocks` (scratch: :func:`element_scratch`, used by its Drucker-Prager cells)."""
+    r_out[e] = 0.0
+    k_out[e] = 0.0
+    if e_old[e, E_LOC] == 1.0:
+        dp_new[e, :, :] = dp_old[e]  # the bulk is frozen: plastic strain held, elastic updates
+        dp_new[e, :, S_MODE] = 0.0
+        st, r, kz, dzu = _localized(grads[e], wdet[e], ue[e], dp_old[e, :, 0:6], ce, gradf[e], e_old[e],
+                                    law, dz[e], slide[e], stick[e], sigma[e], e_new[e], fe[e], ke[e], h_out[e])
+        status[e], r_out[e], k_out[e], dz[e] = st, r, kz, dzu
+        return
+    e_new[e, :] = e_old[e]
+    st = dp_element_into(grads[e], wdet[e], ue[e], dp_old[e], dp_p, dp_k, dp_mu, dp_ce, dp_new[e], sigma[e],
+                         fe[e], ke[e], scratch)
+    status[e] = ST_DP_FAIL if st < 0 else ST_OK

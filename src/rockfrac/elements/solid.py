@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rockfrac.fem.dofs import node_dofs
-from rockfrac.fem.kinematics import element_gradients, elastic_blocks, strains
+from rockfrac.fem.kinematics import elastic_assemble, elastic_blocks, element_gradients, strains
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.elastic import elasticity, isotropic_elasticity
 
@@ -52,7 +52,16 @@ class ElasticSolid(SolidGeometry):
         super().__init__(nodes, cells, ref)
         self.E, self.nu = E, nu
         self.d = elasticity(E, nu, self.dim)
-        self.ke = elastic_blocks(self.grads, self.wdet, self.d)
+
+    @property
+    def ke(self) -> np.ndarray:
+        """Element stiffness matrices (n_el, nd, nd) [N/m] (made on request: the model assembles with
+        :meth:`assemble_into`, which never holds them all)."""
+        return elastic_blocks(self.grads, self.wdet, self.d)
+
+    def assemble_into(self, data: np.ndarray, slots: np.ndarray) -> None:
+        """data[slots] += the element stiffnesses, values and scatter in one pass."""
+        elastic_assemble(self.grads, self.wdet, self.d, slots, data)
 
     def stresses(self, u: np.ndarray) -> np.ndarray:
         """Gauss-point stresses (n_el, n_qp, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz)."""

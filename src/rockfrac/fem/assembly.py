@@ -38,9 +38,10 @@ class Pattern:
         indptr = np.zeros(n + 1, dtype=np.int64)
         np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
         slots = []
+        kind = np.int32 if all_keys.size < 2**31 else np.int64  # half the memory traffic of the scatter
         for dofs, k in zip(groups, keys):
             nd = dofs.shape[1]
-            slots.append(np.searchsorted(all_keys, k).reshape(-1, nd, nd))
+            slots.append(np.searchsorted(all_keys, k).astype(kind).reshape(-1, nd, nd))
         return cls(n=n, indptr=indptr, indices=indices, slots=slots)
 
     @property

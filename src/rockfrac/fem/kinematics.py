@@ -152,3 +152,67 @@ def strains(grads: np.ndarray, ue: np.ndarray) -> np.ndarray:
                     s += b[i, j] * ue[e, j]
                 eps[e, q, idx[i]] = s
     return eps
+
+
+@nb.njit(cache=True, inline="always")
+def _plane_block(g, wdet, d, db, ke):
+    """ke (8, 8) = sum_q w det J B^T D B of one plane cell, B's zeros skipped; the nonzero products
+    are summed in :func:`elastic_blocks`' order, so the result is the same to the last bit."""
+    n_qp, n_nodes, _ = g.shape
+    nd = 2 * n_nodes
+    for i in range(nd):
+        for j in range(nd):
+            ke[i, j] = 0.0
+    for q in range(n_qp):
+        w = wdet[q]
+        for a in range(n_nodes):  # D B column by column: B[:, 2a] = (gx, 0, gy), B[:, 2a+1] = (0, gy, gx)
+            gx, gy = g[q, a, 0], g[q, a, 1]
+            for i in range(3):
+                db[i, 2 * a] = (d[i, 0] * gx + d[i, 2] * gy) * w
+                db[i, 2 * a + 1] = (d[i, 1] * gy + d[i, 2] * gx) * w
+        for a in range(n_nodes):
+            gx, gy = g[q, a, 0], g[q, a, 1]
+            for j in range(nd):
+                ke[2 * a, j] += gx * db[0, j] + gy * db[2, j]
+                ke[2 * a + 1, j] += gy * db[1, j] + gx * db[2, j]
+
+
+@nb.njit(cache=True)
+def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: np.ndarray,
+                     data: np.ndarray) -> None:
+    """data[slots[e]] += sum_q w det J B^T D B for every cell e: the stiffness values and their scatter
+    into an existing CSR pattern in one pass, no (n_el, nd, nd) array [N/m].
+
+    Serial (the scatter would race between threads); equal to the last bit to
+    ``scatter_matrix(data, slots, elastic_blocks(grads, wdet, d))`` (plane cells: zeros of B
+    skipped, same sums; 3D: the same loops).
+    """
+    n_el, n_qp, n_nodes, dim = grads.shape
+    nv = d.shape[0]
+    nd = n_nodes * dim
+    ke = np.empty((nd, nd))
+    b = np.empty((nv, nd))
+    db = np.empty((nv, nd))
+    for e in range(n_el):
+        if dim == 2:
+            _plane_block(grads[e], wdet[e], d, db, ke)
+        else:
+            ke[:, :] = 0.0
+            for q in range(n_qp):
+                b_matrix(grads[e, q], b)
+                w = wdet[e, q]
+                for i in range(nv):
+                    for j in range(nd):
+                        s = 0.0
+                        for k in range(nv):
+                            s += d[i, k] * b[k, j]
+                        db[i, j] = s * w
+                for i in range(nd):
+                    for j in range(nd):
+                        s = 0.0
+                        for k in range(nv):
+                            s += b[k, i] * db[k, j]
+                        ke[i, j] += s
+        for i in range(nd):
+            for j in range(nd):
+                data[slots[e, i, j]] += ke[i, j]

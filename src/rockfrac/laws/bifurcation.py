@@ -34,9 +34,38 @@ N_AZIMUTH = 120  # 3D sweep: azimuths over [0, 2 pi)
 # --------------------------------------------------------------------------------------------
 
 
+@nb.njit(cache=True, inline="always")
+def _cn_row(c, a, n0, n1, n2):
+    """Row a of C N(n) (3 values): N(n)'s three nonzeros per column, in the order of the full sum."""
+    return (c[a, 0] * n0 + c[a, 3] * n1 + c[a, 5] * n2,
+            c[a, 1] * n1 + c[a, 3] * n0 + c[a, 4] * n2,
+            c[a, 2] * n2 + c[a, 4] * n1 + c[a, 5] * n0)
+
+
 @nb.njit(cache=True)
 def _acoustic(c, n, out):
-    """out (3, 3) = N(n)^T c N(n): A_ik = n_j C_ijkl n_l for c (6, 6) Voigt."""
+    """out (3, 3) = N(n)^T c N(n): A_ik = n_j C_ijkl n_l for c (6, 6) Voigt.
+
+    N(n) (6, 3), strain-like sym(a x n) = N(n) a, has rows (n0,0,0), (0,n1,0), (0,0,n2), (n1,n0,0),
+    (0,n2,n1), (n2,0,n0); its zeros are skipped (no work arrays) and the nonzero products summed in
+    the order of the full products, so the values are those of the dense form.
+    """
+    n0, n1, n2 = n[0], n[1], n[2]
+    r0 = _cn_row(c, 0, n0, n1, n2)
+    r1 = _cn_row(c, 1, n0, n1, n2)
+    r2 = _cn_row(c, 2, n0, n1, n2)
+    r3 = _cn_row(c, 3, n0, n1, n2)
+    r4 = _cn_row(c, 4, n0, n1, n2)
+    r5 = _cn_row(c, 5, n0, n1, n2)
+    for k in range(3):
+        out[0, k] = n0 * r0[k] + n1 * r3[k] + n2 * r5[k]
+        out[1, k] = n1 * r1[k] + n0 * r3[k] + n2 * r4[k]
+        out[2, k] = n2 * r2[k] + n1 * r4[k] + n0 * r5[k]
+
+
+@nb.njit(cache=True)
+def _acoustic_dense(c, n, out):
+    """The dense form of :func:`_acoustic` (reference of the tests)."""
     nm = np.zeros((6, 3))  # strain-like sym(a x n) = nm @ a
     nm[0, 0] = n[0]
     nm[1, 1] = n[1]
@@ -82,57 +111,107 @@ def _cofactor(a, cof):
     return a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1] + a[0, 2] * cof[0, 2]
 
 
+@nb.njit(cache=True, inline="always")
+def _acoustic9(c, n0, n1, n2):
+    """A(n) of :func:`_acoustic` as 9 values, row by row (no arrays)."""
+    r0 = _cn_row(c, 0, n0, n1, n2)
+    r1 = _cn_row(c, 1, n0, n1, n2)
+    r2 = _cn_row(c, 2, n0, n1, n2)
+    r3 = _cn_row(c, 3, n0, n1, n2)
+    r4 = _cn_row(c, 4, n0, n1, n2)
+    r5 = _cn_row(c, 5, n0, n1, n2)
+    return (n0 * r0[0] + n1 * r3[0] + n2 * r5[0], n0 * r0[1] + n1 * r3[1] + n2 * r5[1],
+            n0 * r0[2] + n1 * r3[2] + n2 * r5[2],
+            n1 * r1[0] + n0 * r3[0] + n2 * r4[0], n1 * r1[1] + n0 * r3[1] + n2 * r4[1],
+            n1 * r1[2] + n0 * r3[2] + n2 * r4[2],
+            n2 * r2[0] + n1 * r4[0] + n0 * r5[0], n2 * r2[1] + n1 * r4[1] + n0 * r5[1],
+            n2 * r2[2] + n1 * r4[2] + n0 * r5[2])
+
+
+@nb.njit(cache=True, inline="always")
+def _cofactor9(a):
+    """(det, cofactors row by row) of a 3x3 given as 9 values; :func:`_cofactor`'s formulas."""
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
+    c00 = a11 * a22 - a12 * a21
+    c01 = a12 * a20 - a10 * a22
+    c02 = a10 * a21 - a11 * a20
+    c10 = a02 * a21 - a01 * a22
+    c11 = a00 * a22 - a02 * a20
+    c12 = a01 * a20 - a00 * a21
+    c20 = a01 * a12 - a02 * a11
+    c21 = a02 * a10 - a00 * a12
+    c22 = a00 * a11 - a01 * a10
+    return a00 * c00 + a01 * c01 + a02 * c02, (c00, c01, c02, c10, c11, c12, c20, c21, c22)
+
+
+@nb.njit(cache=True, inline="always")
+def _det_grad3(c, n0, n1, n2):
+    """(det A(n), d det A / d n) of :func:`_det_grad` as scalars (no arrays, the same arithmetic)."""
+    det, cof = _cofactor9(_acoustic9(c, n0, n1, n2))
+    out0 = 0.0
+    out1 = 0.0
+    out2 = 0.0
+    for m in range(3):
+        ep = _acoustic9(c, n0 + (1.0 if m == 0 else 0.0), n1 + (1.0 if m == 1 else 0.0),
+                        n2 + (1.0 if m == 2 else 0.0))
+        em = _acoustic9(c, n0 - (1.0 if m == 0 else 0.0), n1 - (1.0 if m == 1 else 0.0),
+                        n2 - (1.0 if m == 2 else 0.0))
+        acc = 0.0
+        for ik in range(9):
+            acc += cof[ik] * 0.5 * (ep[ik] - em[ik])
+        if m == 0:
+            out0 = acc
+        elif m == 1:
+            out1 = acc
+        else:
+            out2 = acc
+    g = (out0, out1, out2)
+    return det, g
+
+
 @nb.njit(cache=True)
 def _det_grad(c, n, grad):
     """det A(n) and grad (3,) = d det A / d n (n not normalized: A is quadratic in n).
 
-    dA_ik/dn_m = C_imkl n_l + n_j C_ijkm, i.e. N(e_m)^T c N(n) + N(n)^T c N(e_m).
+    dA_ik/dn_m = C_imkl n_l + n_j C_ijkm, i.e. N(e_m)^T c N(n) + N(n)^T c N(e_m); computed from
+    A(n + e_m) - A(n - e_m) = 2 dA/dn_m (exact: A is quadratic in n).
     """
-    a = np.empty((3, 3))
-    cof = np.empty((3, 3))
-    _acoustic(c, n, a)
-    det = _cofactor(a, cof)
-    npe = np.empty(3)
-    nme = np.empty(3)
-    em = np.empty((3, 3))
-    ep = np.empty((3, 3))
+    det, g = _det_grad3(c, n[0], n[1], n[2])
     for m in range(3):
-        for i in range(3):
-            npe[i] = n[i]
-            nme[i] = n[i]
-        npe[m] += 1.0
-        nme[m] -= 1.0
-        _acoustic(c, npe, ep)  # A is quadratic in n: A(n + e_m) - A(n - e_m) = 2 dA/dn_m exactly
-        _acoustic(c, nme, em)
-        acc = 0.0
-        for i in range(3):
-            for k in range(3):
-                acc += cof[i, k] * 0.5 * (ep[i, k] - em[i, k])
-        grad[m] = acc
+        grad[m] = g[m]
     return det
+
+
+@nb.njit(cache=True, inline="always")
+def _ratio_grad3(c, ce, n0, n1, n2):
+    """(r, dr/dn as 3 values) of :func:`_ratio_grad`, no arrays."""
+    d1, g1 = _det_grad3(c, n0, n1, n2)
+    d2, g2 = _det_grad3(ce, n0, n1, n2)
+    return d1 / d2, ((g1[0] * d2 - d1 * g2[0]) / (d2 * d2), (g1[1] * d2 - d1 * g2[1]) / (d2 * d2),
+                     (g1[2] * d2 - d1 * g2[2]) / (d2 * d2))
 
 
 @nb.njit(cache=True)
 def _ratio_grad(c, ce, n, grad):
     """r = det A(n) / det A^e(n) and grad (3,) = dr/dn."""
-    g1 = np.empty(3)
-    g2 = np.empty(3)
-    d1 = _det_grad(c, n, g1)
-    d2 = _det_grad(ce, n, g2)
+    r, g = _ratio_grad3(c, ce, n[0], n[1], n[2])
     for m in range(3):
-        grad[m] = (g1[m] * d2 - d1 * g2[m]) / (d2 * d2)
+        grad[m] = g[m]
+    return r
+
+
+@nb.njit(cache=True, inline="always")
+def _ratio3(c, ce, n0, n1, n2):
+    """det A(n) / det A^e(n) for n = (n0, n1, n2), no arrays."""
+    d1, _ = _cofactor9(_acoustic9(c, n0, n1, n2))
+    d2, _ = _cofactor9(_acoustic9(ce, n0, n1, n2))
     return d1 / d2
 
 
 @nb.njit(cache=True)
 def _ratio(c, ce, n):
     """det A(n) / det A^e(n)."""
-    a = np.empty((3, 3))
-    cof = np.empty((3, 3))
-    _acoustic(c, n, a)
-    d1 = _cofactor(a, cof)
-    _acoustic(ce, n, a)
-    return d1 / _cofactor(a, cof)
+    return _ratio3(c, ce, n[0], n[1], n[2])
 
 
 @nb.njit(cache=True)
@@ -152,9 +231,7 @@ def det_ratios(c, ce, normals):
 @nb.njit(cache=True)
 def _dtheta(c, ce, t):
     """d r / d theta at n = (cos t, sin t, 0)."""
-    n = np.array([math.cos(t), math.sin(t), 0.0])
-    g = np.empty(3)
-    _ratio_grad(c, ce, n, g)
+    _, g = _ratio_grad3(c, ce, math.cos(t), math.sin(t), 0.0)
     return -math.sin(t) * g[0] + math.cos(t) * g[1]
 
 
@@ -165,11 +242,30 @@ def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
     A sweep point is a minimum if r is strictly below its left and not above its right neighbour
     (periodic); it is refined by bisection of dr/dtheta on [t - h, t + h] where the sign changes.
     """
+    return _plane_strain_minima_swept(c, ce, n_sweep, _elastic_sweep(ce, n_sweep), theta_out, ratio_out)
+
+
+@nb.njit(cache=True)
+def _elastic_sweep(ce, n_sweep):
+    """(n_sweep, 3): cos t, sin t and det A^e(n) at the sweep's normals t = i pi / n_sweep."""
+    h = math.pi / n_sweep
+    out = np.empty((n_sweep, 3))
+    for i in range(n_sweep):
+        t = i * h
+        out[i, 0] = math.cos(t)
+        out[i, 1] = math.sin(t)
+        out[i, 2] = _cofactor9(_acoustic9(ce, out[i, 0], out[i, 1], 0.0))[0]
+    return out
+
+
+@nb.njit(cache=True)
+def _plane_strain_minima_swept(c, ce, n_sweep, sweep, theta_out, ratio_out):
+    """:func:`_plane_strain_minima` with the elastic part of the sweep (:func:`_elastic_sweep`, the
+    same at every point) given: det A(n) / det A^e(n) with the same values, so the same bits."""
     h = math.pi / n_sweep
     r = np.empty(n_sweep)
     for i in range(n_sweep):
-        t = i * h
-        r[i] = _ratio(c, ce, np.array([math.cos(t), math.sin(t), 0.0]))
+        r[i] = _cofactor9(_acoustic9(c, sweep[i, 0], sweep[i, 1], 0.0))[0] / sweep[i, 2]
     count = 0
     for i in range(n_sweep):
         if not (r[i] < r[(i - 1) % n_sweep] and r[i] <= r[(i + 1) % n_sweep]):
@@ -188,7 +284,7 @@ def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
             t = 0.5 * (lo + hi)
         t = t % math.pi
         theta_out[count] = t
-        ratio_out[count] = _ratio(c, ce, np.array([math.cos(t), math.sin(t), 0.0]))
+        ratio_out[count] = _ratio3(c, ce, math.cos(t), math.sin(t), 0.0)
         count += 1
     return count
 
@@ -569,19 +665,87 @@ def screen_plane_strain(sigma, p, ce, n_sweep):
     """Min over a sweep of n_sweep in-plane normals of det A / det A^e (eq. 7-8, f and g at each
     stress), for many points: sigma (n, 6) [Pa] -> (n,). A coarse bound from above of the true
     minimum (within the sweep's resolution): refine with localization_plane_strain where it is small.
+    The normals and det A^e(n) are the same at every point: computed once (same bits as per point).
     """
     n = sigma.shape[0]
     out = np.empty(n)
+    normals = np.zeros((n_sweep, 3))
+    det_e = np.empty(n_sweep)
+    a = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    for k in range(n_sweep):
+        t = np.pi * k / n_sweep
+        normals[k, 0] = math.cos(t)
+        normals[k, 1] = math.sin(t)
+        _acoustic(ce, normals[k], a)
+        det_e[k] = _cofactor(a, cof)
+    n_chunks = max(1, min(n, 256))
+    for ch in nb.prange(n_chunks):
+        ai = np.empty((3, 3))
+        ci = np.empty((3, 3))
+        for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
+            c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
+            best = np.inf
+            for k in range(n_sweep):
+                _acoustic(c, normals[k], ai)
+                r = _cofactor(ai, ci) / det_e[k]
+                if r < best:
+                    best = r
+            out[i] = best
+    return out
+
+
+MAX_MINIMA = 16  # local minima kept per point by minima_plane_strain (more: the caller falls back)
+
+
+@nb.njit(cache=True, parallel=True)
+def minima_plane_strain(sigma, p, ce, n_sweep, theta_out, ratio_out, count_out):
+    """The plane-strain minima of :func:`localization_plane_strain` at many stresses sigma (n, 6)
+    [Pa] at once (tangent of eq. 8 with f and g at each stress, as :func:`perfectly_plastic_tangent_at`
+    with ce = law.elastic_matrix(), p = law.as_array()): theta_out, ratio_out (n, MAX_MINIMA) the
+    angles [rad] and ratios, count_out (n,) how many (> MAX_MINIMA: not stored). Same compiled
+    search, so the same values as the one-point path."""
+    n = sigma.shape[0]
+    sweep = _elastic_sweep(ce, n_sweep)
     for i in nb.prange(n):
         c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
-        best = np.inf
-        nrm = np.zeros(3)
-        for k in range(n_sweep):
-            t = np.pi * k / n_sweep
-            nrm[0] = math.cos(t)
-            nrm[1] = math.sin(t)
-            r = _ratio(c, ce, nrm)
-            if r < best:
-                best = r
-        out[i] = best
+        th = np.empty(n_sweep)
+        rr = np.empty(n_sweep)
+        k = _plane_strain_minima_swept(c, ce, n_sweep, sweep, th, rr)
+        if k == 0:
+            th[0], rr[0], k = 0.0, _ratio(c, ce, np.array([1.0, 0.0, 0.0])), 1
+        count_out[i] = k
+        for j in range(min(k, theta_out.shape[1])):
+            theta_out[i, j] = th[j]
+            ratio_out[i, j] = rr[j]
+
+
+def min_ratios_plane_strain(law: DruckerPrager, sigma: np.ndarray, n_sweep: int = N_SWEEP) -> np.ndarray:
+    """``localization_at(law, s).min_ratio`` for every row s of sigma (n, 6) [Pa], in one compiled pass.
+
+    The ordering of :func:`_result` (ratio rounded to 1e-10, then band angle descending) picks which
+    minimum is reported; it is applied here to all points at once.
+    """
+    sigma = np.ascontiguousarray(sigma, dtype=float)
+    n = sigma.shape[0]
+    th = np.zeros((n, MAX_MINIMA))
+    rr = np.full((n, MAX_MINIMA), np.inf)
+    count = np.zeros(n, dtype=np.int64)
+    minima_plane_strain(sigma, law.as_array(), law.elastic_matrix(), n_sweep, th, rr, count)
+    valid = np.arange(MAX_MINIMA)[None, :] < np.minimum(count, MAX_MINIMA)[:, None]
+    pt, j = np.nonzero(valid)
+    t = th[pt, j]
+    nrm = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=1)
+    nrm /= np.sqrt((nrm * nrm).sum(axis=1))[:, None]
+    flip = np.where(np.abs(nrm[:, 1]) > 1e-14, nrm[:, 1] < 0.0, nrm[:, 0] < 0.0)
+    nrm[flip] *= -1.0
+    band = np.mod(np.arctan2(nrm[:, 1], nrm[:, 0]), math.pi) - 0.5 * math.pi
+    band = np.where(band <= -0.5 * math.pi, band + math.pi, band)
+    rounded = np.array([round(x, 10) for x in rr[pt, j].tolist()])
+    order = np.lexsort((j, -band, rounded, pt))  # per point: _result's sort key, stable
+    first = order[np.concatenate(([True], pt[order][1:] != pt[order][:-1]))]
+    out = np.empty(n)
+    out[pt[first]] = rr[pt[first], j[first]]
+    for i in np.flatnonzero(count > MAX_MINIMA):  # many minima (never seen): the one-point path
+        out[i] = localization_at(law, sigma[i]).min_ratio
     return out

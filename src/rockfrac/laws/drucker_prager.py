@@ -163,22 +163,26 @@ def _elastic(sig_tr, s_old, ce, sigma_out, c_out, s_new):
 
 @nb.njit(cache=True)
 def _cone(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new):
-    """Return to the cone and its consistent tangent.
+    """Return to the cone and its consistent tangent (allocating form of :func:`_cone_into`)."""
+    return _cone_into(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new,
+                      np.empty(6), np.empty(6), np.empty(6))
+
+
+@nb.njit(cache=True)
+def _cone_into(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new, nh, a_g, a_f):
+    """Return to the cone and its consistent tangent; nh, a_g, a_f (6,) are scratch.
 
     With d(dgamma) = a_f : d eps / X_H and d nhat = 2 mu / |s_tr| (I_dev - nhat x nhat) d eps:
     C = Ce - (2 sqrt(6) mu^2 dgamma / |s_tr|) (I_dev - nhat x nhat) - a_g x a_f / X_H,
     a_g = Ce:g = sqrt(6) mu nhat + sqrt(3) b K 1, a_f = Ce:f = sqrt(6) mu nhat + sqrt(3) beta K 1.
     """
     beta, b = p[P_BETA], p[P_B]
-    nh = np.empty(6)
     for i in range(6):
         nh[i] = s_tr[i] / sn_tr
     for i in range(6):
         sigma_out[i] = sig_tr[i] - SQ6 * mu * dg * nh[i]
     for i in range(3):
         sigma_out[i] -= SQ3 * b * k * dg
-    a_g = np.empty(6)
-    a_f = np.empty(6)
     for i in range(6):
         a_g[i] = SQ6 * mu * nh[i]
         a_f[i] = SQ6 * mu * nh[i]
@@ -241,12 +245,20 @@ def return_map(eps, s_old, p, sigma_out, c_out, s_new):
     -3 no admissible return (state copied, outputs undefined).
     """
     k, mu = moduli(p)
-    ce = elastic_matrix(p)
-    sig_tr = np.zeros(6)
+    return return_map_into(eps, s_old, p, k, mu, elastic_matrix(p), np.empty((5, 6)), sigma_out, c_out, s_new)
+
+
+@nb.njit(cache=True)
+def return_map_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
+    """:func:`return_map` without allocations: (k, mu) = moduli(p), ce = elastic_matrix(p), work (5, 6)
+    scratch. Same arithmetic, so the same results to the last bit."""
+    sig_tr = work[0]
+    s_tr = work[1]
     for i in range(6):
+        acc = 0.0
         for j in range(6):
-            sig_tr[i] += ce[i, j] * (eps[j] - s_old[S_EPS_P + j])
-    s_tr = np.empty(6)
+            acc += ce[i, j] * (eps[j] - s_old[S_EPS_P + j])
+        sig_tr[i] = acc
     p_tr, sn_tr = deviator(sig_tr, s_tr)
     beta = p[P_BETA]
     kappa_n = p[P_KAPPA0] + p[P_H] * s_old[S_GAMMA]
@@ -261,7 +273,8 @@ def return_map(eps, s_old, p, sigma_out, c_out, s_new):
         return ST_NO_RETURN
     dg = f_tr / x_h
     if sn_tr - SQ6 * mu * dg > 0.0:
-        return _cone(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new)
+        return _cone_into(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new,
+                          work[2], work[3], work[4])
     st = _apex(eps, p_tr, k, kappa_n, p, s_old, sigma_out, c_out, s_new)
     if st < 0:
         for kk in range(N_STATE):
@@ -275,5 +288,11 @@ def return_map_points(eps, s_old, p, sigma, c, s_new, status):
 
     eps (n, 6), s_old/s_new (n, N_STATE), sigma (n, 6), c (n, 6, 6), status (n,).
     """
-    for i in nb.prange(eps.shape[0]):
-        status[i] = return_map(eps[i], s_old[i], p, sigma[i], c[i], s_new[i])
+    n = eps.shape[0]
+    k, mu = moduli(p)
+    ce = elastic_matrix(p)
+    n_chunks = max(1, min(n, 256))  # scratch per chunk (a thread count here would stop caching)
+    for ch in nb.prange(n_chunks):  # scratch once per chunk, not per point
+        work = np.empty((5, 6))
+        for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
+            status[i] = return_map_into(eps[i], s_old[i], p, k, mu, ce, work, sigma[i], c[i], s_new[i])

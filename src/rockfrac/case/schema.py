@@ -346,12 +346,15 @@ class LinearSolverName(str, Enum):
     auto = "auto"
     superlu = "superlu"
     pardiso = "pardiso"
+    mumps = "mumps"
+    gmres_amg = "gmres-amg"
 
 
 class SolverSection(_Section):
     linear: LinearSolverName = Field(LinearSolverName.auto,
-                                     description="'auto' (the fastest installed: pardiso, else superlu), "
-                                     "'superlu' (SciPy) or 'pardiso' (needs pypardiso)")
+                                     description="'auto' (the fastest installed: pardiso, mumps, superlu), "
+                                     "'superlu' (SciPy), 'pardiso' (needs pypardiso), 'mumps' (needs "
+                                     "python-mumps) or 'gmres-amg' (iterative, needs pyamg)")
 
     @model_validator(mode="after")
     def _solver_installed(self) -> SolverSection:

@@ -1,7 +1,13 @@
 """Linear solver backends sharing one verb: ``solve(A, b) -> x`` for CSR matrices.
 
 ``factorize(A)`` returns an object whose ``solve(b)`` reuses the factorization (path following
-needs two right-hand sides per iteration).
+needs two right-hand sides per iteration). A backend that cannot solve raises ``SolverFailed``, a
+``RuntimeError``: the Newton loop turns it into a failed iteration, and the stepping cuts back.
+
+Backends, fastest first on this project's tangents (benchmarks/README.md, "Linear solvers"):
+PARDISO (MKL, pypardiso), MUMPS (python-mumps, needs Debian's libmumps), SciPy's SuperLU, and
+GMRES preconditioned by smoothed-aggregation AMG (pyamg). The optional ones are used when they
+import; ``auto`` picks the first installed of ``PREFERENCE``.
 """
 
 from __future__ import annotations
@@ -11,6 +17,10 @@ from typing import Protocol
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+
+
+class SolverFailed(RuntimeError):
+    """A backend could not solve: a failed factorization or a Krylov method that did not converge."""
 
 
 class Factorization(Protocol):
@@ -25,32 +35,66 @@ class LinearSolver(Protocol):
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
 
 
-class SuperLU:
-    """SciPy's SuperLU direct solver (the default; always available)."""
+class _Backend:
+    """``solve`` as a factorization used once."""
+
+    name = ""
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        raise NotImplementedError
+
+    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        return self.factorize(a).solve(b)
+
+
+class SuperLU(_Backend):
+    """SciPy's SuperLU direct solver (always available)."""
 
     name = "superlu"
 
     def factorize(self, a: sp.csr_matrix) -> Factorization:
         return spla.splu(a.tocsc())
 
-    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        return self.factorize(a).solve(b)
+
+class _Pattern:
+    """A CSR sparsity pattern remembered by identity of its arrays, and by value as a fallback."""
+
+    def __init__(self, a: sp.csr_matrix):
+        self.indptr, self.indices = a.indptr, a.indices
+        self._indptr, self._indices = a.indptr.copy(), a.indices.copy()
+
+    def same(self, a: sp.csr_matrix) -> bool:
+        if a.indptr is self.indptr and a.indices is self.indices:
+            return True
+        same = (a.indptr.shape == self._indptr.shape and a.indices.shape == self._indices.shape
+                and np.array_equal(a.indptr, self._indptr) and np.array_equal(a.indices, self._indices))
+        if same:  # the next matrix built on the same arrays is recognized by identity
+            self.indptr, self.indices = a.indptr, a.indices
+        return same
 
 
 class _PardisoFactor:
-    def __init__(self, solver, a: sp.csr_matrix):
-        self._solver, self._a = solver, a
+    def __init__(self, owner: Pardiso, a: sp.csr_matrix, generation: int):
+        self._owner, self._a, self._generation = owner, a, generation
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self._solver.solve(self._a, b)
+        if self._generation != self._owner.generation:
+            raise SolverFailed("PARDISO factorization used after a newer one replaced it")
+        return self._owner.substitute(self._a, b)
 
 
-class Pardiso:
-    """Intel MKL PARDISO through pypardiso (optional: ``pip install pypardiso``), unsymmetric mode.
+class Pardiso(_Backend):
+    """Intel MKL PARDISO through pypardiso (optional: the ``fast`` extra), unsymmetric (mtype 11).
 
-    One PARDISO instance serves the whole run: each factorization first frees the previous one's
-    factors (MKL would otherwise keep every factorization alive: memory grows by the size of a
-    factorization per Newton iteration), and the instance's set-up cost is paid once.
+    The sparsity pattern of a run's tangents never changes (Dirichlet rows are zeroed in place), so
+    the analysis (fill-reducing ordering and symbolic factorization, phase 11) is kept; each
+    factorization is a numerical one (phase 22) after the previous factors are freed (phase 0:
+    memory stays flat), and each solve a forward/backward substitution (phase 33). A matrix with
+    another pattern releases everything (phase -1) and is analysed afresh. So is the first matrix
+    of every load step (``begin_step``, called by the Newton loop): MKL's matching and scaling are
+    computed from the analysed matrix's values, so the factors depend on the matrix analysed, and
+    a run resumed from a checkpoint (at a step's start) must analyse where the uninterrupted run
+    did to stay bit for bit the same; it also keeps the matching fit for the step's tangents.
     """
 
     name = "pardiso"
@@ -59,31 +103,213 @@ class Pardiso:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
 
         self._solver = None
+        self._pattern: _Pattern | None = None
+        self._ia = self._ja = None  # 1-based int32 index arrays of the analysed pattern
+        self._factored = False
+        self._new_step = False
+        self.generation = 0  # factorizations done; a factor object is valid for its own only
+        self.analyses = 0  # symbolic analyses done (phase 11)
 
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
+    def _call(self, phase: int, a: sp.csr_matrix | None, b: np.ndarray) -> np.ndarray:
+        """One PARDISO call on the analysed pattern (``a``'s values) with right-hand sides ``b``."""
+        import ctypes
+
+        from pypardiso.pardiso_wrapper import PyPardisoError
+
+        s = self._solver
+        x = np.zeros_like(b)
+        err = ctypes.c_int32(0)
+        i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
+        n = 0 if a is None else a.shape[0]
+        data = np.zeros(1) if a is None else a.data
+        ia = np.zeros(1, np.int32) if a is None else self._ia
+        ja = np.zeros(1, np.int32) if a is None else self._ja
+        s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])),
+                       ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
+                       ctypes.byref(ctypes.c_int32(11)), ctypes.byref(ctypes.c_int32(phase)),
+                       ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(f64),
+                       ia.ctypes.data_as(i32), ja.ctypes.data_as(i32), s.perm.ctypes.data_as(i32),
+                       ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
+                       s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
+                       b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+        if err.value != 0:
+            raise SolverFailed(str(PyPardisoError(err.value)))
+        return x
+
+    def _release(self, everything: bool) -> None:
+        if self._solver is None or self._pattern is None:  # nothing analysed yet
+            return
+        self._call(-1 if everything else 0, None, np.zeros(0))
+        self._factored = False
+        if everything:
+            self._solver.pt[:] = 0  # a released handle starts again as a fresh one
+            self._pattern = None
+
+    def analyse(self, a: sp.csr_matrix) -> None:
+        """Ordering and symbolic factorization of ``a``'s pattern (phase 11)."""
         import pypardiso
 
         if self._solver is None:
             self._solver = pypardiso.PyPardisoSolver(mtype=11)
-            self._solver.set_statistical_info_off()
-        else:
-            self._solver.free_memory(everything=False)  # release the last factors
-        a = sp.csr_matrix(a)
-        self._solver.factorize(a)  # explicit: never a stale factorization of an equal-looking matrix
-        return _PardisoFactor(self._solver, a)
+        self._release(everything=True)
+        if not np.diff(a.indptr).all():
+            raise SolverFailed("matrix has an empty row (singular)")
+        self._pattern = _Pattern(a)
+        self._ia = (a.indptr + 1).astype(np.int32)
+        self._ja = (a.indices + 1).astype(np.int32)
+        self._call(11, a, np.zeros((a.shape[0], 1)))
+        self._new_step = False
+        self.analyses += 1
 
-    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        return self.factorize(a).solve(b)
+    def begin_step(self) -> None:
+        """A load step starts: its first factorization analyses afresh (see the class note)."""
+        self._new_step = True
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        a = sp.csr_matrix(a)
+        if a.dtype != np.float64:
+            a = a.astype(np.float64)
+        if not a.has_sorted_indices:
+            a = a.sorted_indices()
+        if self._pattern is None or self._new_step or not self._pattern.same(a):
+            self.analyse(a)
+        elif self._factored:
+            self._release(everything=False)  # the previous factors
+        self._call(22, a, np.zeros((a.shape[0], 1)))
+        self._factored = True
+        self.generation += 1
+        # keep the values: phase 33 refines iteratively against the matrix (the caller may reuse it)
+        kept = sp.csr_matrix((a.data.copy(), a.indices, a.indptr), shape=a.shape)
+        return _PardisoFactor(self, kept, self.generation)
+
+    def substitute(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        """Solve with the current factors (phase 33, with PARDISO's iterative refinement on ``a``)."""
+        b = np.asfortranarray(b, dtype=np.float64)
+        return np.ascontiguousarray(self._call(33, a, b))
 
     def __del__(self) -> None:
         if getattr(self, "_solver", None) is not None:
             try:
-                self._solver.free_memory(everything=True)
-            except Exception:  # noqa: BLE001 -- at interpreter shutdown scipy may already be gone
+                self._release(everything=True)
+            except Exception:  # noqa: BLE001 -- at interpreter shutdown numpy may already be gone
                 pass
 
 
-SOLVERS = {"superlu": SuperLU, "pardiso": Pardiso}
+class _MumpsFactor:
+    def __init__(self, ctx, generation: int, owner: Mumps):
+        self._ctx, self._generation, self._owner = ctx, generation, owner
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        if self._generation != self._owner.generation:
+            raise SolverFailed("MUMPS factorization used after a newer one replaced it")
+        try:
+            return np.asarray(self._ctx.solve(b))
+        except Exception as err:  # noqa: BLE001 -- MUMPS reports errors with its own exception type
+            raise SolverFailed(f"MUMPS solve failed: {err}") from err
+
+
+class Mumps(_Backend):
+    """MUMPS (sequential) through python-mumps (optional: needs Debian's libmumps-seq-dev to build).
+
+    The analysis is done once per sparsity pattern and reused by each numerical factorization.
+    """
+
+    name = "mumps"
+
+    def __init__(self) -> None:
+        import mumps  # noqa: F401
+
+        self._ctx = None
+        self._pattern: _Pattern | None = None
+        self.generation = 0
+        self.analyses = 0
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        import mumps
+
+        a = sp.csr_matrix(a)
+        try:
+            if self._pattern is None or not self._pattern.same(a):
+                self._ctx = mumps.Context()
+                self._ctx.set_matrix(a)
+                self._ctx.analyze()
+                self._pattern = _Pattern(a)
+                self.analyses += 1
+            else:
+                self._ctx.set_matrix(a)  # same pattern: the analysis is kept
+            self._ctx.factor(reuse_analysis=True)
+        except Exception as err:  # noqa: BLE001
+            raise SolverFailed(f"MUMPS factorization failed: {err}") from err
+        self.generation += 1
+        return _MumpsFactor(self._ctx, self.generation, self)
+
+
+class _KrylovSolve:
+    def __init__(self, a: sp.csr_matrix, precondition, rtol: float, maxiter: int, restart: int):
+        self._a, self._m = a, precondition
+        self._rtol, self._maxiter, self._restart = rtol, maxiter, restart
+        self.iterations = 0
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        norm_b = float(np.linalg.norm(b))
+        if norm_b == 0.0:
+            return np.zeros_like(b)
+        count = [0]
+
+        def counter(_):
+            count[0] += 1
+
+        with np.errstate(all="ignore"):
+            x, info = spla.gmres(self._a, b, M=self._m, rtol=self._rtol, atol=0.0, restart=self._restart,
+                                 maxiter=self._maxiter, callback=counter, callback_type="pr_norm")
+        self.iterations = count[0]
+        res = float(np.linalg.norm(b - self._a @ x)) / norm_b if np.all(np.isfinite(x)) else np.inf
+        if info != 0 or not res <= 10 * self._rtol:
+            raise SolverFailed(f"GMRES did not converge: relative residual {res:.2e} after "
+                               f"{count[0]} iterations (tolerance {self._rtol:.0e})")
+        return x
+
+
+class KrylovAMG(_Backend):
+    """Restarted GMRES preconditioned by one V-cycle of smoothed-aggregation AMG (pyamg).
+
+    The AMG works on 2 x 2 nodal blocks with the two rigid translations as near-null space (the
+    engine numbers two displacement components per node first; a matrix of odd size falls back to
+    scalar aggregation). Iterative: relative residual 1e-11, far below Newton's 1e-8, or
+    ``SolverFailed``. Saddle-point tangents (the RP CSE's multiplier rows) defeat it.
+    """
+
+    name = "gmres-amg"
+    rtol = 1e-11
+    restart = 60
+    maxiter = 10  # restarts: at most 600 GMRES iterations
+    block = 2  # displacement components per node
+
+    def __init__(self) -> None:
+        import pyamg  # noqa: F401
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        import pyamg
+
+        a = sp.csr_matrix(a)
+        n, k = a.shape[0], self.block
+        try:
+            with np.errstate(all="ignore"):
+                if n % k == 0:
+                    translations = np.zeros((n, k))
+                    for c in range(k):
+                        translations[c::k, c] = 1.0
+                    ml = pyamg.smoothed_aggregation_solver(a.tobsr(blocksize=(k, k)), B=translations,
+                                                           symmetry="nonsymmetric", max_coarse=500)
+                else:
+                    ml = pyamg.smoothed_aggregation_solver(a, symmetry="nonsymmetric", max_coarse=500)
+            precondition = ml.aspreconditioner(cycle="V")
+        except Exception as err:  # noqa: BLE001 -- pyamg raises assorted errors on bad matrices
+            raise SolverFailed(f"AMG set-up failed: {err}") from err
+        return _KrylovSolve(a, precondition, self.rtol, self.maxiter, self.restart)
+
+
+SOLVERS = {"pardiso": Pardiso, "mumps": Mumps, "superlu": SuperLU, "gmres-amg": KrylovAMG}
 
 
 def available() -> list[str]:
@@ -98,7 +324,10 @@ def available() -> list[str]:
     return names
 
 
-PREFERENCE = ("pardiso", "superlu")  # fastest first, measured in benchmarks/README.md
+# fastest first, measured in benchmarks/README.md ("Linear solvers"): PARDISO on every system from
+# 1e4 to 1e6 dofs; MUMPS before SuperLU on 5 of the 6 (not the 1e6-dof band); the iterative
+# backend is never chosen by 'auto' (it fails on the RP CSE's saddle points)
+PREFERENCE = ("pardiso", "mumps", "superlu")
 
 
 def make_solver(name: str) -> LinearSolver:

@@ -34,7 +34,7 @@ os.environ["NUMBA_NUM_THREADS"] = _threads_from_argv()  # before numba is import
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(HERE))
-from run import machine  # noqa: E402
+from run import machine, replace_table  # noqa: E402
 
 ELEMENT_TARGET = 1.0e6  # elements/s, elastic Q4 values + scatter, one core
 POINT_TARGET = 1.0e7  # integration points/s, traction law and Drucker-Prager updates
@@ -318,14 +318,7 @@ def table_lines(res: dict) -> list[str]:
 
 
 def write_table(res: dict) -> None:
-    readme = HERE / "README.md"
-    text = readme.read_text()
-    start, end = "<!-- kernels-table:start -->", "<!-- kernels-table:end -->"
-    if start not in text:
-        return
-    head, rest = text.split(start)
-    _, tail = rest.split(end)
-    readme.write_text(head + start + "\n" + "\n".join(table_lines(res)) + "\n" + end + tail)
+    replace_table("kernels-table", table_lines(res))
 
 
 def main() -> None:

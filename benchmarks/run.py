@@ -104,6 +104,7 @@ def timing(owner, name: str, sink: dict, key: str):
     original = getattr(owner, name)
 
     def wrapper(*args, **kwargs):
+        sink[key + "_n"] = sink.get(key + "_n", 0) + 1
         t0 = time.perf_counter()
         try:
             return original(*args, **kwargs)
@@ -285,14 +286,22 @@ def table_lines(results: list[dict], info: dict, total_s: float) -> list[str]:
     return lines
 
 
-def write_table(results: list[dict], info: dict, total_s: float) -> None:
+def replace_table(name: str, lines: list[str]) -> bool:
+    """Put ``lines`` between the ``<!-- name:start -->`` and ``<!-- name:end -->`` markers of
+    README.md; False (nothing written) if the markers are missing."""
     readme = HERE / "README.md"
     text = readme.read_text()
-    start, end = "<!-- engine-table:start -->", "<!-- engine-table:end -->"
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    if start not in text or end not in text:
+        return False
     head, rest = text.split(start)
     _, tail = rest.split(end)
-    body = "\n".join(table_lines(results, info, total_s))
-    readme.write_text(head + start + "\n" + body + "\n" + end + tail)
+    readme.write_text(head + start + "\n" + "\n".join(lines) + "\n" + end + tail)
+    return True
+
+
+def write_table(results: list[dict], info: dict, total_s: float) -> None:
+    replace_table("engine-table", table_lines(results, info, total_s))
 
 
 def main() -> None:

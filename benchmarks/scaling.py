@@ -36,7 +36,7 @@ import numpy as np
 HERE = Path(__file__).parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from run import machine, timing  # noqa: E402
+from run import machine, replace_table, timing  # noqa: E402
 
 SIZES = [1e4, 1e5, 1e6, 2e6]
 W, H = 0.04, 0.08
@@ -66,26 +66,6 @@ def case_for(problem: str, dofs: float):
     out = case.output.model_copy(update={"vtk": False, "points": False, "checkpoint_every": None})
     solver = case.solver.model_copy(update={"linear": "auto"})
     return case.model_copy(update={"mesh": mesh, "loading": loading, "output": out, "solver": solver})
-
-
-@contextlib.contextmanager
-def counting(owner, name: str, sink: dict, key: str):
-    """As :func:`run.timing`, and count the calls in ``sink[key + '_n']``."""
-    original = getattr(owner, name)
-
-    def wrapper(*args, **kwargs):
-        sink[key + "_n"] = sink.get(key + "_n", 0) + 1
-        t0 = time.perf_counter()
-        try:
-            return original(*args, **kwargs)
-        finally:
-            sink[key] = sink.get(key, 0.0) + time.perf_counter() - t0
-
-    setattr(owner, name, wrapper)
-    try:
-        yield
-    finally:
-        setattr(owner, name, original)
 
 
 def measure(problem: str, dofs: float, steps: int, profile: bool = False) -> dict:
@@ -154,7 +134,7 @@ def measure(problem: str, dofs: float, steps: int, profile: bool = False) -> dic
         stack.enter_context(timing(model_module, "scatter_matrix", parts, "scatter"))
         stack.enter_context(timing(model_module, "scatter_vector", parts, "scatter"))
         stack.enter_context(timing(type(model), "commit", parts, "commit"))
-        stack.enter_context(counting(type(model), "assemble", parts, "assemble"))
+        stack.enter_context(timing(type(model), "assemble", parts, "assemble"))
         if hasattr(type(model), "event"):
             stack.enter_context(timing(type(model), "event", parts, "event"))
         stepping.newton_step = timed
@@ -259,14 +239,7 @@ def table_lines(results: list[dict], info: dict) -> list[str]:
 
 
 def write_table(results: list[dict], info: dict) -> None:
-    readme = HERE / "README.md"
-    text = readme.read_text()
-    start, end = "<!-- scaling-table:start -->", "<!-- scaling-table:end -->"
-    if start not in text:
-        return
-    head, rest = text.split(start)
-    _, tail = rest.split(end)
-    readme.write_text(head + start + "\n" + "\n".join(table_lines(results, info)) + "\n" + end + tail)
+    replace_table("scaling-table", table_lines(results, info))
 
 
 def main() -> None:

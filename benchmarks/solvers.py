@@ -239,12 +239,10 @@ def table_lines(results: list[dict], info: dict, total_s: float) -> list[str]:
 
 
 def write_table(lines: list[str]) -> None:
-    readme = HERE / "README.md"
-    text = readme.read_text()
-    start, end = "<!-- solvers-table:start -->", "<!-- solvers-table:end -->"
-    head, rest = text.split(start)
-    _, tail = rest.split(end)
-    readme.write_text(head + start + "\n" + "\n".join(lines) + "\n" + end + tail)
+    sys.path.insert(0, str(HERE))
+    from run import replace_table
+
+    replace_table("solvers-table", lines)
 
 
 def main() -> None:

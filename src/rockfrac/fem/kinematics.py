@@ -118,21 +118,27 @@ def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.nda
         b = np.empty((nv, nd))
         db = np.empty((nv, nd))
         for q in range(n_qp):
-            b_matrix(grads[e, q], b)
-            w = wdet[e, q]
-            for i in range(nv):
-                for j in range(nd):
-                    s = 0.0
-                    for k in range(nv):
-                        s += d[i, k] * b[k, j]
-                    db[i, j] = s * w
-            for i in range(nd):
-                for j in range(nd):
-                    s = 0.0
-                    for k in range(nv):
-                        s += b[k, i] * db[k, j]
-                    ke[e, i, j] += s
+            _add_btdb(grads[e, q], wdet[e, q], d, b, db, ke[e])
     return ke
+
+
+@nb.njit(cache=True, inline="always")
+def _add_btdb(g, w, d, b, db, ke):
+    """ke += w B^T D B at one point with shape gradients g (b, db: work arrays)."""
+    b_matrix(g, b)
+    nv, nd = b.shape
+    for i in range(nv):
+        for j in range(nd):
+            s = 0.0
+            for k in range(nv):
+                s += d[i, k] * b[k, j]
+            db[i, j] = s * w
+    for i in range(nd):
+        for j in range(nd):
+            s = 0.0
+            for k in range(nv):
+                s += b[k, i] * db[k, j]
+            ke[i, j] += s
 
 
 @nb.njit(cache=True, parallel=True)
@@ -199,20 +205,7 @@ def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: 
         else:
             ke[:, :] = 0.0
             for q in range(n_qp):
-                b_matrix(grads[e, q], b)
-                w = wdet[e, q]
-                for i in range(nv):
-                    for j in range(nd):
-                        s = 0.0
-                        for k in range(nv):
-                            s += d[i, k] * b[k, j]
-                        db[i, j] = s * w
-                for i in range(nd):
-                    for j in range(nd):
-                        s = 0.0
-                        for k in range(nv):
-                            s += b[k, i] * db[k, j]
-                        ke[i, j] += s
+                _add_btdb(grads[e, q], wdet[e, q], d, b, db, ke)
         for i in range(nd):
             for j in range(nd):
                 data[slots[e, i, j]] += ke[i, j]

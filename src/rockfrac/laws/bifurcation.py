@@ -50,17 +50,10 @@ def _acoustic(c, n, out):
     (0,n2,n1), (n2,0,n0); its zeros are skipped (no work arrays) and the nonzero products summed in
     the order of the full products, so the values are those of the dense form.
     """
-    n0, n1, n2 = n[0], n[1], n[2]
-    r0 = _cn_row(c, 0, n0, n1, n2)
-    r1 = _cn_row(c, 1, n0, n1, n2)
-    r2 = _cn_row(c, 2, n0, n1, n2)
-    r3 = _cn_row(c, 3, n0, n1, n2)
-    r4 = _cn_row(c, 4, n0, n1, n2)
-    r5 = _cn_row(c, 5, n0, n1, n2)
-    for k in range(3):
-        out[0, k] = n0 * r0[k] + n1 * r3[k] + n2 * r5[k]
-        out[1, k] = n1 * r1[k] + n0 * r3[k] + n2 * r4[k]
-        out[2, k] = n2 * r2[k] + n1 * r4[k] + n0 * r5[k]
+    a = _acoustic9(c, n[0], n[1], n[2])
+    out[0, 0], out[0, 1], out[0, 2] = a[0], a[1], a[2]
+    out[1, 0], out[1, 1], out[1, 2] = a[3], a[4], a[5]
+    out[2, 0], out[2, 1], out[2, 2] = a[6], a[7], a[8]
 
 
 @nb.njit(cache=True)

@@ -1,4 +1,4 @@
-"""Scaling of the grains (RP CSE) and band (EDE) problems from 1e4 to 2e6 dofs.
+"""Scaling of the grains (EP CSE) and band (EDE) problems from 1e4 to 2e6 dofs.
 
 One command (``python benchmarks/scaling.py``, ``make scaling``): for each problem and size, a
 fresh Python process builds the example case with a finer mesh, runs its first load steps
@@ -63,7 +63,7 @@ def case_for(problem: str, dofs: float):
         mesh = case.mesh.model_copy(update={"element_size": float(np.sqrt(2.31 * W * H / dofs))})
     disp, steps = AXIAL[problem]
     loading = case.loading.model_copy(update={"axial_displacement": disp, "axial_steps": steps})
-    out = case.output.model_copy(update={"vtk": False, "points": False, "checkpoint_every": None})
+    out = case.output.model_copy(update={"vtk": False, "points": False, "checkpoint_every": 0})
     solver = case.solver.model_copy(update={"linear": "auto"})
     return case.model_copy(update={"mesh": mesh, "loading": loading, "output": out, "solver": solver})
 

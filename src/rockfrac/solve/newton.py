@@ -186,11 +186,12 @@ def newton_step(
                 u_try = u + alpha * du
                 lam_try = lam_from + alpha * (dlam if control is not None else 0.0)
                 u_try[dofs_d] = loads.dirichlet(lam_try)
+                f_try = loads.forces(lam_try)
                 t0 = time.perf_counter()
-                trial = model.assemble(u_try, u_n, loads.forces(lam_try))
+                trial = model.assemble(u_try, u_n, f_try)
                 result.time_assembly += time.perf_counter() - t0
                 ok = trial.ok and np.all(np.isfinite(trial.residual))
-                if ok and (relative(trial, loads.forces(lam_try)) <= rel or halving == options.line_search):
+                if ok and (relative(trial, f_try) <= rel or halving == options.line_search):
                     break
                 alpha *= 0.5
             pending = trial

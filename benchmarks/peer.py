@@ -3,14 +3,15 @@
 For each N: one Gmsh file of the N x N triangle block (peer_mesh), read by both codes; Akantu
 (intrinsic cohesive_bilinear, static Newton) runs in its own virtualenv ``.venv-akantu``
 (created with ``pip install akantu`` when missing, so rockfrac's ``.venv`` is never touched),
-then rockfrac (EP CSE, ``linear = "auto"``), each in its own process, one after the other. The
+then rockfrac (EP CSE, ``linear = "auto"``, the trapezoidal work rule; again with one thread;
+again with the paper's backward-Euler rule), each in its own process, one after the other. The
 problem and its closed forms are in peer_problem. Prints the table; the full run also writes
 ``results/peer.json`` and the table in ``README.md``.
 
 Options: ``--sizes 22 70 158 224`` (N, even), ``--quick`` (N = 22 only, print only),
 ``--profile N`` (cProfile rockfrac's default run at that N, 70 unless given; the top functions
 go into the JSON),
-``--refine K`` (K > 1: one more rockfrac run per size, one thread, K times as many steps;
+``--refine K`` (K > 1: one more rockfrac run per size, backward Euler, K times as many steps;
 ``--refine-up-to N`` limits it to the sizes up to N).
 """
 
@@ -39,7 +40,7 @@ AKANTU_SPEC = "akantu==5.0.7.post1"
 ROCKFRAC_PY = ROOT / ".venv" / "bin" / "python"
 # rockfrac's threaded runtimes (MKL PARDISO, Numba prange) held to one thread, as Akantu runs
 ONE_THREAD = {"MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
-CODES = ("akantu", "rockfrac", "rockfrac_1t", "rockfrac_refined")
+CODES = ("akantu", "rockfrac", "rockfrac_1t", "rockfrac_be", "rockfrac_refined")
 
 
 def akantu_python() -> Path:
@@ -85,7 +86,7 @@ def accuracy(r: dict, law: str) -> dict:
         discrete = curve
     else:
         curve = np.array([P.rockfrac_stress(x) for x in u]) * width
-        discrete = np.asarray(P.rockfrac_discrete_stresses(list(u))) * width
+        discrete = np.asarray(P.rockfrac_discrete_stresses(list(u), r["work_rule"])) * width
     scale = P.SIGMA_C * width
     return {"slope_err": slope, "peak_err": peak, "energy_err": energy,
             "dissipated": (work - stored) / width, "dissipated_exact": exact(u[-1]),
@@ -168,7 +169,8 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[22, 70, 158, 224])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--profile", type=int, default=70, help="cProfile rockfrac at this N")
-    ap.add_argument("--refine", type=int, default=8, help="step refinement of the extra rockfrac run")
+    ap.add_argument("--refine", type=int, default=1,
+                    help="K > 1: an extra backward-Euler rockfrac run with K times the steps")
     ap.add_argument("--refine-up-to", type=int, default=224, help="largest N of the refined run")
     args = ap.parse_args()
     sizes = [22] if args.quick else args.sizes
@@ -186,11 +188,16 @@ def main() -> None:
             res["rockfrac_1t"] = run_code(ROCKFRAC_PY, "peer_rockfrac.py", mesh, n, env=ONE_THREAD)
             if "failed" not in res["rockfrac_1t"]:
                 res["rockfrac_1t"]["code"] = "rockfrac, 1 thread"
+            res["rockfrac_be"] = run_code(ROCKFRAC_PY, "peer_rockfrac.py", mesh, n,
+                                          ["--work-rule", "backward_euler"])
+            if "failed" not in res["rockfrac_be"]:
+                res["rockfrac_be"]["code"] = "rockfrac, backward Euler"
             if args.refine > 1 and n <= args.refine_up_to:
                 res["rockfrac_refined"] = run_code(ROCKFRAC_PY, "peer_rockfrac.py", mesh, n,
-                                                   ["--refine", str(args.refine)], env=ONE_THREAD)
+                                                   ["--refine", str(args.refine), "--work-rule",
+                                                    "backward_euler"])
                 if "failed" not in res["rockfrac_refined"]:
-                    res["rockfrac_refined"]["code"] = f"rockfrac, 1 thread, {args.refine}x steps"
+                    res["rockfrac_refined"]["code"] = f"rockfrac, backward Euler, {args.refine}x steps"
             for code in CODES:
                 if code in res and "failed" not in res[code]:
                     res[code]["accuracy"] = accuracy(res[code], "akantu" if code == "akantu" else "rockfrac")

@@ -114,12 +114,15 @@ def no_snap_back() -> bool:
     return max(akantu_slope, rockfrac_slope) * compliance() < 1.0
 
 
-def rockfrac_discrete_stresses(displacements: list[float]) -> list[float]:
-    """Traction [Pa] after each step of rockfrac's backward-Euler update in pure opening.
+def rockfrac_discrete_stresses(displacements: list[float], work_rule: str = "backward_euler") -> list[float]:
+    """Traction [Pa] after each step of rockfrac's update in pure opening, for its work rule.
 
-    Per step: u = sigma C + u_p, G_f^I (eps - eps_old) = sigma (u_p - u_p_old), sigma = chi(eps)
-    once the cap is reached (the update the EP return map solves); bisection on eps.
+    Per step: u = sigma C + u_p, G_f^I (eps - eps_old) = sigma_w (u_p - u_p_old), sigma = chi(eps)
+    once the cap is reached (the update the EP return map solves); bisection on eps. sigma_w is
+    sigma (backward Euler) or (sigma_s + sigma) / 2 (trapezoidal), sigma_s = chi(eps_old), the
+    traction where flow starts in the step.
     """
+    theta = {"backward_euler": 0.0, "trapezoidal": 0.5}[work_rule]
     c, out, eps, u_p = compliance(), [], 0.0, 0.0
     for u in displacements:
         chi = SIGMA_C * math.exp(-ALPHA_CHI * eps)
@@ -130,7 +133,7 @@ def rockfrac_discrete_stresses(displacements: list[float]) -> list[float]:
 
         def gap(e: float) -> float:
             s = SIGMA_C * math.exp(-ALPHA_CHI * e)
-            return G_C * (e - eps) - s * (u - s * c - u_p)
+            return G_C * (e - eps) - (theta * chi + (1.0 - theta) * s) * (u - s * c - u_p)
 
         for _ in range(200):
             mid = 0.5 * (lo + hi)

@@ -142,9 +142,11 @@ def test_ep_return_map_is_consistent(name):
     np.testing.assert_allclose(s[S_EPSS] - s_old[S_EPSS], de_s, rtol=1e-9, atol=1e-18)
 
 
-def test_local_jacobian_matches_finite_differences():
-    """Analytic J of the local problem, every partial (ISVs, brackets, |.|), EP and RP forms."""
+@pytest.mark.parametrize("ws", [(0.0, 0.0, 0.0), (0.5, 1500.0, 2200.0)], ids=["backward-euler", "trapezoidal"])
+def test_local_jacobian_matches_finite_differences(ws):
+    """Analytic J of the local problem, every partial (ISVs, brackets, |.|), EP and RP forms, both work rules."""
     p = UNEQUAL_GF.as_array()
+    ws = np.array(ws)
     du, t_old = np.array([2e-6, 1e-6]), np.array([3000.0, -1000.0])
     points = [
         np.array([4000.0, -6000.0, 1e-4, 3e-4, 2e-6]),  # compression-shear: eps_s row active
@@ -153,7 +155,7 @@ def test_local_jacobian_matches_finite_differences():
     for comp in (np.array([1e-9, 1e-9]), np.zeros(2)):
         for x in points:
             r, jac = np.zeros(5), np.zeros((5, 5))
-            law._system(x, du, t_old, 5e-5, 5e-5, comp, 1e5, p, 0.0, r, jac)
+            law._system(x, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, r, jac)
             jac_fd = np.zeros((5, 5))
             for j in range(5):
                 h = 1e-6 * abs(x[j])
@@ -161,8 +163,8 @@ def test_local_jacobian_matches_finite_differences():
                 xp, xm = x.copy(), x.copy()
                 xp[j] += h
                 xm[j] -= h
-                law._system(xp, du, t_old, 5e-5, 5e-5, comp, 1e5, p, 0.0, rp_, np.zeros((5, 5)))
-                law._system(xm, du, t_old, 5e-5, 5e-5, comp, 1e5, p, 0.0, rm_, np.zeros((5, 5)))
+                law._system(xp, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, rp_, np.zeros((5, 5)))
+                law._system(xm, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, rm_, np.zeros((5, 5)))
                 jac_fd[:, j] = (rp_ - rm_) / (2 * h)
             scale = np.abs(jac).max(axis=1, keepdims=True)
             np.testing.assert_allclose(jac / scale, jac_fd / scale, rtol=0, atol=1e-7)
@@ -402,3 +404,104 @@ def test_drive_rejects_rigid_law_and_reports_failing_step():
         drive_path(RP, np.zeros((2, 2)))
     with pytest.raises(RuntimeError, match="step 2"):
         drive_path(EP, np.array([[0.0, 1e-6], [np.nan, 1e-6]]))
+
+
+# --- the trapezoidal work rule ------------------------------------------------------------------
+
+
+TRAP = dataclasses.replace(EP, work_rule="trapezoidal")
+TRAP_GF = dataclasses.replace(UNEQUAL_GF, work_rule="trapezoidal")
+TRAP_RP = dataclasses.replace(RP, work_rule="trapezoidal")
+
+
+def test_work_rule_is_validated_and_defaults_to_the_papers():
+    assert EP.work_rule == "backward_euler" and EP.as_array()[-1] == 0.0
+    assert TRAP.as_array()[-1] == 0.5
+    with pytest.raises(ValueError, match="work_rule must be one of"):
+        dataclasses.replace(EP, work_rule="midpoint")
+
+
+def opening_errors(variant, start, steps=(40, 80, 160), u_max=1e-3):
+    """Max |T_n - closed form| [Pa] along pure opening from u_n = start * chi_p / kn in n equal steps."""
+    u_yield = variant.chi_p / variant.kn
+    errors = []
+    for n in steps:
+        un = start * u_yield + np.linspace(0.0, u_max, n + 1)[1:]
+        r = drive_path(variant, np.column_stack([np.zeros_like(un), un]))
+        assert np.all(r["T_t"] == 0.0) and np.all(r["eps_s_p"] == 0.0)
+        exact = variant.chi_p / (1.0 + 2e3 * variant.chi_p * r["jump_p_n"] / variant.GfI)
+        plastic = r["jump_p_n"] > 0.0
+        assert plastic.sum() >= n - 1
+        errors.append(np.abs(r["T_n"] - exact)[plastic].max())
+    return np.array(errors), r
+
+
+@pytest.mark.parametrize("start", [1.0, 0.3], ids=["from-the-elastic-limit", "crossing-inside-a-step"])
+def test_trapezoidal_pure_opening_is_second_order(start):
+    """The same closed form as above; the trapezoidal rule converges as h^2, backward Euler as h."""
+    variant = dataclasses.replace(TRAP_GF, c_p=2.0 * 15680.0 * math.tan(TABLE1["phi_p"]))
+    errors, r = opening_errors(variant, start)
+    assert r["T_n"][-1] < 0.3 * variant.chi_p
+    ratios = errors[:-1] / errors[1:]
+    assert np.all((ratios > 3.2) & (ratios < 4.6)), ratios  # first order would give 2
+    be, _ = opening_errors(dataclasses.replace(variant, work_rule="backward_euler"), start)
+    assert np.all(errors < be / 15.0)  # measured: 20x (40 steps) to 86x (160 steps) more accurate
+
+
+def test_trapezoidal_work_increment_is_the_mean_of_start_and_end():
+    """From a committed plastic state the opening work is (<T_old,n> + <T_n>)/2 du_n^p (eq. of R_n)."""
+    p = TRAP_GF.as_array()
+    st, s1, _ = ep([0.0, 3e-5], state(), p)  # onset: flow starts inside this step, at T_n = chi_p
+    assert st == 1
+    dup = s1[S_UPN]
+    np.testing.assert_allclose(s1[S_EPSN], 0.5 * (TRAP_GF.chi_p + s1[S_TN]) * dup / TRAP_GF.GfI, rtol=1e-10)
+    st, s2, _ = ep([1e-6, 2e-5], s1, p)  # continued flow, a little shear
+    assert st == 1
+    dup = s2[[S_UPT, S_UPN]] - s1[[S_UPT, S_UPN]]
+    np.testing.assert_allclose(s2[S_EPSN] - s1[S_EPSN],
+                               0.5 * (s1[S_TN] + s2[S_TN]) * dup[1] / TRAP_GF.GfI, rtol=1e-9)
+
+
+TRAP_CASES = {
+    "onset, tension-shear": (None, [3e-6, 2.4e-5]),
+    "onset, compression-shear": (state(1000.0, -2.0e4), [3e-5, 1e-6]),
+    "continued, tension-shear": ([2e-6, 2e-5], [3e-6, 2e-6]),
+    "continued, compression-shear": ([6e-5, 0.0], [4e-6, 1e-7]),
+}
+
+
+@pytest.mark.parametrize("name", list(TRAP_CASES))
+def test_trapezoidal_consistent_tangent_matches_finite_differences(name):
+    """T_s moves with du in an onset step: its derivative is part of the tangent."""
+    first, du = TRAP_CASES[name]
+    p = TRAP_GF.as_array()
+    if first is None or isinstance(first, np.ndarray):
+        s_old = state() if first is None else first
+    else:
+        st, s_old, _ = ep(first, state(-1000.0 if first[1] < 0 else 0.0, -2.0e4 if first[1] < 0 else 0.0), p)
+        assert st == 1
+    st, s, d = ep(du, s_old, p)
+    assert st == 1 and abs(yield_at(s, p)) < 1e-8 * C_P
+    d_fd = fd_tangent(lambda u: ep(u, s_old, p)[1], du, h=5e-11)
+    assert rel_err(d, d_fd) < 1e-6
+    be = dataclasses.replace(TRAP_GF, work_rule="backward_euler").as_array()
+    assert rel_err(ep(du, s_old, be)[2], d) > 1e-5  # the rule changes the tangent (measured 5e-5 to 1e-2)
+
+
+def test_trapezoidal_rp_tangent_and_onset_rule():
+    """RP: the first plastic step is backward Euler; from a plastic state the trapezoidal mean."""
+    p, p_be = TRAP_RP.as_array(), RP.as_array()
+    du = [1e-6, 2e-6]
+    guess = np.array([0.0, 0.0, 0.0, 0.0, 0.0])
+    st, s1, _ = rp(du, state(), p, guess)
+    st_be, s1_be, _ = rp(du, state(), p_be, guess)
+    assert st == st_be == 1
+    np.testing.assert_array_equal(s1, s1_be)
+    du2 = [2e-6, 1e-6]
+    x1 = np.array([s1[S_TT], s1[S_TN], s1[S_EPSN], s1[S_EPSS], 0.0])
+    st, s2, d = rp(du2, s1, p, x1)
+    assert st == 1 and abs(yield_at(s2, p)) < 1e-8 * C_P
+    np.testing.assert_allclose(s2[S_EPSN] - s1[S_EPSN],
+                               0.5 * (max(s1[S_TN], 0) + max(s2[S_TN], 0)) * du2[1] / TRAP_RP.GfI, rtol=1e-9)
+    d_fd = fd_tangent(lambda u: rp(u, s1, p, x1)[1], du2, 1e-11)
+    assert rel_err(d, d_fd) < 1e-6

@@ -222,6 +222,11 @@ class CohesiveForm(str, Enum):
     rp = "rp"
 
 
+class WorkRule(str, Enum):
+    backward_euler = "backward_euler"
+    trapezoidal = "trapezoidal"
+
+
 class TractionLaw(_Section):
     """Parameters of the traction law of Sect. 4.2 (Table 1 symbols)."""
 
@@ -238,6 +243,11 @@ class TractionLaw(_Section):
     alpha_c: float = Field(ge=0, description="softening rate of c [-]")
     alpha_phi: float = Field(ge=0, description="softening rate of tan(phi) [-]")
     alpha_psi: float = Field(ge=0, description="softening rate of tan(psi) [-]")
+    work_rule: WorkRule = Field(WorkRule.backward_euler, description="work that drives softening in a step: "
+                                "'backward_euler' (the paper's: end traction x plastic jump increment; first "
+                                "order in the step) or 'trapezoidal' (mean of the traction where flow starts "
+                                "and the end traction; second order)")
+
     @model_validator(mode="after")
     def _residual_below_peak(self):
         if self.chi_r > self.chi_p or self.c_r > self.c_p or self.phi_r > self.phi_p:

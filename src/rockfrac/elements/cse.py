@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from rockfrac.laws.cohesive import ep_update, return_map
+from rockfrac.laws.cohesive import START_GIVEN, START_NONE, ep_update, return_map_from
 from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_MODE, S_TN, S_TT
 
 
@@ -122,7 +122,9 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
             s_lam = s_old[i].copy()  # return from T_old := lambda (local frame)
             s_lam[S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]
             s_lam[S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
-            status[i] = return_map(h, s_lam, comp, p, s_new[i], d_new[i])
+            # the work rule's flow starts at the committed traction of a committed plastic point
+            start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+            status[i] = return_map_from(h, s_lam, s_old[i, S_TT : S_TN + 1], start, comp, p, s_new[i], d_new[i])
         switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
         tg = np.empty(2)
         dg = np.empty((2, 2))

@@ -8,13 +8,21 @@ One local problem serves both cohesive forms. With the compliance ``C = diag(1/k
 Sect. 6.1) or ``C = 0`` (RP, Sect. 6.2) the unknowns ``x = (T_t, T_n, eps_n, eps_s, dgamma)`` solve
 
 * ``R_u = du - C (T - T_old) - dgamma g(T, q) = 0``  (eq. 31 times K^-1; eq. 34 when C = 0)
-* ``R_n = eps_n - eps_n_old - <T_n> dgamma g_n / G_f^I = 0``
-* ``R_s = eps_s - eps_s_old - <|T_t| + T_n* tan(phi)> dgamma |g_t| / G_f^II = 0``
+* ``R_n = eps_n - eps_n_old - <T_n>_w dgamma g_n / G_f^I = 0``
+* ``R_s = eps_s - eps_s_old - <|T_t| + T_n* tan(phi)>_w dgamma |g_t| / G_f^II = 0``
 * ``R_F = F(T, q) = 0``  (eq. 18)
 
-integrated by backward Euler (everything at n+1) with Carol's pairing of G_f^I with opening and
-G_f^II with slip (PAPER_NOTES, Sect. 4.2). The residual is solved by Newton with a backtracking
-line search on a scaled norm; the consistent tangent is ``dT/d(du) = -(J^-1)[0:2, 0:2]``.
+with Carol's pairing of G_f^I with opening and G_f^II with slip (PAPER_NOTES, Sect. 4.2). The flow
+is backward Euler (closest point, everything at n+1). The work that drives softening,
+``f_w = theta f(T_s, q_old) + (1 - theta) f(T, q)``, follows the law's ``work_rule``: backward
+Euler (``theta = 0``, the paper's; first order in the step) or the trapezoidal rule (``theta =
+1/2``; second order) between ``T_s``, the traction where plastic flow starts in the step, and the
+end traction. EP: ``T_s`` is where the elastic path ``T_old + a K^e du`` meets ``F(T, q_old) = 0``
+(``T_old`` itself when the point was plastic), so it depends on du and enters the tangent. RP: the
+committed traction of a point that was plastic; the step in which a point first yields is
+backward Euler (its onset traction is not known locally). The residual is solved by Newton with a
+backtracking line search on a scaled norm; the consistent tangent is
+``dT/d(du) = -(J^-1)[0:2, 0:2]``.
 
 Corner of a degenerate hyperbola (``a_F = c - chi tan(phi) = 0``, Table 1): ``T_t / sqrt(T_t^2 +
 a^2)`` is taken as 0 when both vanish and its derivative ``a^2 / (T_t^2 + a^2)^{3/2}`` as 0 there,
@@ -49,6 +57,7 @@ from rockfrac.laws.cohesive_params import (
     P_TANPHI_P,
     P_TANPHI_R,
     P_TANPSI_P,
+    P_THETA,
     S_DGAMMA,
     S_EPSN,
     S_EPSS,
@@ -69,6 +78,10 @@ ST_PLASTIC = 1
 ST_NO_CONVERGENCE = -1
 ST_UNLOAD = -2  # dgamma < 0 or inadmissible plastic direction
 ST_SINGULAR = -3  # singular Jacobian or NaN
+
+START_NONE = 0  # no start-of-flow traction: backward Euler work for this step
+START_GIVEN = 1  # the given traction is where flow starts (a committed plastic point)
+START_CROSSING = 2  # flow starts where T_old + a K^e du meets the old yield surface
 
 
 # --------------------------------------------------------------------------------------------
@@ -201,16 +214,18 @@ def _jump_rows(x, du, t_old, comp, wu, q, r, jac):
 
 
 @nb.njit(cache=True)
-def _opening_row(x, en_old, p, q, we, r, jac):
-    """Row 2: G_f^I (eps_n - eps_n_old) - <T_n> dgamma g_n [Pa m] times we [1/(Pa m)].
+def _opening_row(x, en_old, p, q, ws, we, r, jac):
+    """Row 2: G_f^I (eps_n - eps_n_old) - <T_n>_w dgamma g_n [Pa m] times we [1/(Pa m)].
 
-    Backward Euler of eps_n' = <T_n> u_n^p' / G_f^I (Carol's pairing, PAPER_NOTES Sect. 4.2).
+    eps_n' = <T_n> u_n^p' / G_f^I (Carol's pairing, PAPER_NOTES Sect. 4.2) with the work rule's
+    <T_n>_w = theta <T_s,n> + (1 - theta) <T_n>, ws = (theta, <T_s,n>, .) (see _work_start).
     """
     tn, dg = x[1], x[4]
     tpsi, dtpsi = q[3], q[7]
     gf = p[P_GF1]
-    mac = max(tn, 0.0)
-    h = 1.0 if tn > 0.0 else 0.0
+    th = ws[0]
+    mac = th * ws[1] + (1.0 - th) * max(tn, 0.0)
+    h = (1.0 - th) if tn > 0.0 else 0.0
     r[2] = we * (gf * (x[2] - en_old) - mac * dg * tpsi)
     jac[2, 0] = 0.0
     jac[2, 1] = -we * h * dg * tpsi
@@ -220,11 +235,12 @@ def _opening_row(x, en_old, p, q, we, r, jac):
 
 
 @nb.njit(cache=True)
-def _slip_row(x, es_old, p, q, gt, we, r, jac):
-    """Row 3: G_f^II (eps_s - eps_s_old) - <|T_t| + T_n* tan phi> dgamma |g_t| [Pa m] times we.
+def _slip_row(x, es_old, p, q, gt, ws, we, r, jac):
+    """Row 3: G_f^II (eps_s - eps_s_old) - <|T_t| + T_n* tan phi>_w dgamma |g_t| [Pa m] times we.
 
-    Backward Euler of eps_s' = <|T_t| + T_n* tan phi> |u_t^p'| / G_f^II (Carol's pairing).
-    gt = (g_t, dg_t/dT_t, dg_t/da_G, da_G/deps_n, da_G/deps_s) from the jump rows.
+    eps_s' = <|T_t| + T_n* tan phi> |u_t^p'| / G_f^II (Carol's pairing) with the work rule's mean
+    theta m_s + (1 - theta) <.>, ws = (theta, ., m_s). gt = (g_t, dg_t/dT_t, dg_t/da_G,
+    da_G/deps_n, da_G/deps_s) from the jump rows.
     """
     tt, tn, dg = x[0], x[1], x[4]
     tphi, dtphi = q[2], q[6]
@@ -233,8 +249,9 @@ def _slip_row(x, es_old, p, q, gt, we, r, jac):
     ng, dng_dtt, dng_dag = sg * gt[0], sg * gt[1], sg * gt[2]
     tn_star = min(tn, 0.0)
     arg = abs(tt) + tn_star * tphi
-    m = max(arg, 0.0)
-    h = 1.0 if arg > 0.0 else 0.0
+    th = ws[0]
+    m = th * ws[2] + (1.0 - th) * max(arg, 0.0)
+    h = (1.0 - th) if arg > 0.0 else 0.0
     dm_dtt = h * sg
     dm_dtn = h * tphi if tn < 0.0 else 0.0
     dm_des = h * tn_star * dtphi
@@ -265,12 +282,13 @@ def _yield_row(x, q, s, r, jac):
 
 
 @nb.njit(cache=True)
-def _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac):
+def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, r, jac):
     """Scaled residual r (5,) and Jacobian jac (5, 5) of the local problem at x (see module doc).
 
     Row weights make every row a relative error: jump rows by wu = 1/L_u [1/m], ISV rows (in
-    energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. frozen: ISV rows become
-    eps = eps_old when frozen > 0 (a float flag: return with frozen strengths, the guess).
+    energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. ws: start-of-flow terms of the
+    work rule (_work_start). frozen: ISV rows become eps = eps_old when frozen > 0 (a float flag:
+    return with frozen strengths, the guess).
     """
     s = _scale(p)
     q = _isv(x[2], x[3], p)
@@ -284,8 +302,8 @@ def _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac):
         jac[2, 2] = 1.0
         jac[3, 3] = 1.0
     else:
-        _opening_row(x, en_old, p, q, wu / s, r, jac)
-        _slip_row(x, es_old, p, q, gt, wu / s, r, jac)
+        _opening_row(x, en_old, p, q, ws, wu / s, r, jac)
+        _slip_row(x, es_old, p, q, gt, ws, wu / s, r, jac)
     _yield_row(x, q, s, r, jac)
 
 
@@ -365,7 +383,7 @@ def _corner_limit(x0, dx0, sgn):
 
 
 @nb.njit(cache=True)
-def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
+def _newton(x, du, t_old, en_old, es_old, comp, p, ws, frozen, sgn):
     """Local Newton with backtracking on the scaled residual; x (5,) updated in place.
 
     sgn: known sign of T_t at the solution (0: pure opening, T_t held at 0 exactly).
@@ -378,7 +396,7 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
     xt = np.empty(5)
     dx = np.empty((5, 1))
     wu = _jump_weight(comp, du, p)
-    _system(x, du, t_old, en_old, es_old, comp, wu, p, frozen, r, jac)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, r, jac)
     nrm = _norm(r)
     for _ in range(MAX_ITER):
         if not nrm < np.inf:
@@ -396,7 +414,7 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
         for _ls in range(40):
             for k in range(5):
                 xt[k] = x[k] + alpha * dx[k, 0]
-            _system(xt, du, t_old, en_old, es_old, comp, wu, p, frozen, rt, jt)
+            _system(xt, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, rt, jt)
             nt = _norm(rt)
             if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
                 accepted = True
@@ -414,15 +432,25 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, frozen, sgn):
 
 
 @nb.njit(cache=True)
-def _tangent(x, du, t_old, en_old, es_old, comp, p, D):
-    """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular."""
+def _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D):
+    """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular.
+
+    dws (2, 2): d(<T_s,n>, m_s)/d(du) of the work rule's start terms (zero unless T_s moves with du).
+    """
     r = np.empty(5)
     jac = np.empty((5, 5))
     wu = _jump_weight(comp, du, p)
-    _system(x, du, t_old, en_old, es_old, comp, wu, p, 0.0, r, jac)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, 0.0, r, jac)
     b = np.zeros((5, 2))
     b[0, 0] = wu  # d r / d du of the weighted jump rows
     b[1, 1] = wu
+    if ws[0] != 0.0:  # the ISV rows through T_s(du)
+        we = wu / _scale(p)
+        tpsi = _isv(x[2], x[3], p)[3]
+        ng = abs(flow_direction(x[0], x[1], x[2], x[3], p)[0])
+        for j in range(2):
+            b[2, j] = -we * ws[0] * dws[0, j] * x[4] * tpsi
+            b[3, j] = -we * ws[0] * dws[1, j] * x[4] * ng
     if not _gauss(jac, b):
         return False
     for i in range(2):
@@ -444,6 +472,68 @@ def _commit(x, up_inc_t, up_inc_n, s_old, s_new):
     s_new[S_EPSS] = x[3]
     s_new[S_DGAMMA] = x[4]
     s_new[S_MODE] = MODE_PLASTIC
+
+
+# --------------------------------------------------------------------------------------------
+# work rule: where plastic flow starts in the step
+# --------------------------------------------------------------------------------------------
+
+
+@nb.njit(cache=True)
+def _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws):
+    """Start-of-flow terms of the work rule: ws = (theta, <T_s,n>, <|T_s,t| + T_s,n* tan phi_old>) [-, Pa, Pa]
+    and dws = their du-derivatives [Pa/m] (rows 1-2 of ws).
+
+    theta = p[P_THETA] (0: backward Euler, nothing else is needed). start: START_GIVEN, T_s = t_s;
+    START_CROSSING, T_s = t_s + a K^e du where F(T_s, q_old) = 0, a in [0, 1] (a = 0 if t_s is on
+    the surface); F is convex along the path and positive at a = 1, so Newton from a = 1 decreases
+    monotonically to the root. START_NONE: theta := 0.
+    """
+    for k in range(3):
+        ws[k] = 0.0
+    for i in range(2):
+        for j in range(2):
+            dws[i, j] = 0.0
+    if p[P_THETA] == 0.0 or start == START_NONE:
+        return
+    ws[0] = p[P_THETA]
+    chi, c, tphi, _ = strengths(en_old, es_old, p)
+    tt, tn = t_s[0], t_s[1]
+    dtt0 = dtt1 = dtn0 = dtn1 = 0.0  # dT_s/d(du)
+    if start == START_CROSSING and yield_function(tt, tn, en_old, es_old, p) < -_elastic_tol(p):
+        kdt, kdn = du[0] / comp[0], du[1] / comp[1]
+        a_f = c - chi * tphi
+        a = 1.0
+        slope = 0.0
+        for _ in range(60):
+            xt, xn = tt + a * kdt, tn + a * kdn
+            r_f = math.sqrt(xt * xt + a_f * a_f)
+            slope = _ratio(xt, r_f) * kdt + tphi * kdn
+            if not slope > 0.0:
+                break
+            step = (r_f - c + xn * tphi) / slope
+            a = min(max(a - step, 0.0), 1.0)
+            if abs(step) <= 1.0e-15:
+                break
+        xt, xn = tt + a * kdt, tn + a * kdn
+        if slope > 0.0:  # implicit function: F_T . K^e (du da + a d(du)) = 0
+            r_f = math.sqrt(xt * xt + a_f * a_f)
+            ft = _ratio(xt, r_f)
+            da0 = -a * ft / comp[0] / slope
+            da1 = -a * tphi / comp[1] / slope
+            dtt0, dtt1 = kdt * da0 + a / comp[0], kdt * da1
+            dtn0, dtn1 = kdn * da0, kdn * da1 + a / comp[1]
+        tt, tn = xt, xn
+    if tn > 0.0:
+        ws[1] = tn
+        dws[0, 0], dws[0, 1] = dtn0, dtn1
+    arg = abs(tt) + min(tn, 0.0) * tphi
+    if arg > 0.0:
+        ws[2] = arg
+        sg = _sign(tt)
+        kn = tphi if tn < 0.0 else 0.0
+        dws[1, 0] = sg * dtt0 + kn * dtn0
+        dws[1, 1] = sg * dtt1 + kn * dtn1
 
 
 # --------------------------------------------------------------------------------------------
@@ -479,8 +569,21 @@ def return_map(du, s_old, comp, p, s_new, D):
 
     du (2,): local jump increment [m]; s_old/s_new: committed/new state (N_STATE,), T_old is
     s_old's traction; D (2, 2): consistent tangent dT/d(du) [Pa/m]. The EP CSE passes its
-    penalty compliances, the RP CSE its augmentation (K^e = r I) with T_old = lambda.
+    penalty compliances; flow starts where the elastic path leaves the old surface.
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
+    """
+    t_s = np.empty(2)
+    t_s[0] = s_old[S_TT]
+    t_s[1] = s_old[S_TN]
+    return return_map_from(du, s_old, t_s, START_CROSSING, comp, p, s_new, D)
+
+
+@nb.njit(cache=True)
+def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
+    """:func:`return_map` with the work rule's start-of-flow traction t_s (2,) [Pa] and its start kind.
+
+    The RP CSE passes its augmentation (K^e = r I), T_old = lambda in s_old, and the committed
+    traction with START_GIVEN (committed plastic) or START_NONE (see the module doc).
     """
     t_old = np.empty(2)
     t_old[0] = s_old[S_TT]
@@ -491,17 +594,20 @@ def return_map(du, s_old, comp, p, s_new, D):
     t_tr[1] = t_old[1] + du[1] / comp[1]
     if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
         return _ep_elastic(t_tr, s_old, comp, s_new, D)
+    ws = np.empty(3)
+    dws = np.empty((2, 2))
+    _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws)
     x = np.empty(5)
     x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
     sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
-    if _newton(x, du, t_old, en_old, es_old, comp, p, 1.0, sgn) < 0:
+    if _newton(x, du, t_old, en_old, es_old, comp, p, ws, 1.0, sgn) < 0:
         x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
-    st = _newton(x, du, t_old, en_old, es_old, comp, p, 0.0, sgn)
+    st = _newton(x, du, t_old, en_old, es_old, comp, p, ws, 0.0, sgn)
     if st < 0:
         return st
     if x[4] < 0.0:
         return ST_UNLOAD
-    if not _tangent(x, du, t_old, en_old, es_old, comp, p, D):
+    if not _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D):
         return ST_SINGULAR
     gt, gn = flow_direction(x[0], x[1], x[2], x[3], p)
     _commit(x, x[4] * gt, x[4] * gn, s_old, s_new)
@@ -563,16 +669,29 @@ def _rp_direct_guess(du, s_old, p, x):
 
 
 @nb.njit(cache=True)
+def _rp_work_start(du, s_old, p, ws, dws):
+    """Work-rule start terms of eq. (34): the committed traction of a plastic point, else none."""
+    t_s = np.empty(2)
+    t_s[0] = s_old[S_TT]
+    t_s[1] = s_old[S_TN]
+    start = START_GIVEN if s_old[S_MODE] == MODE_PLASTIC else START_NONE
+    _work_start(t_s, du, np.zeros(2), s_old[S_EPSN], s_old[S_EPSS], p, start, ws, dws)  # no K^e used
+
+
+@nb.njit(cache=True)
 def _rp_solve(du, s_old, p, x, sgn):
     """Newton on eq. (34) from x with T_t put on the side sgn; returns the Newton status."""
     zero = np.zeros(2)
+    ws = np.empty(3)
+    dws = np.empty((2, 2))
+    _rp_work_start(du, s_old, p, ws, dws)
     if sgn == 0.0:
         x[0] = 0.0
     elif x[0] * sgn <= 0.0:
         x[0] = sgn * max(abs(x[0]), 1.0e-6 * _scale(p))
     if not x[4] > 0.0:
         x[4] = math.sqrt(du[0] * du[0] + du[1] * du[1])
-    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, 0.0, sgn)
+    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, ws, 0.0, sgn)
 
 
 @nb.njit(cache=True)
@@ -611,6 +730,9 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
 def rp_tangent_at(x, du, s_old, p, D):
     """D = dT/d(du) [Pa/m] of the RP local problem (eq. 34) evaluated at x (5,); 0 ok, -3 singular."""
     zero = np.zeros(2)
-    if _tangent(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, D):
+    ws = np.empty(3)
+    dws = np.empty((2, 2))
+    _rp_work_start(du, s_old, p, ws, dws)
+    if _tangent(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, ws, dws, D):
         return 0
     return ST_SINGULAR

@@ -27,7 +27,10 @@ P_A_CHI = 11  # softening rate of chi (dimensionless)
 P_A_C = 12  # softening rate of c
 P_A_PHI = 13  # softening rate of tan(phi)
 P_A_PSI = 14  # softening rate of tan(psi)
-N_PARAMS = 15
+P_THETA = 15  # weight of the start-of-flow traction in the work increment: 0 backward Euler, 1/2 trapezoidal
+N_PARAMS = 16
+
+WORK_RULES = {"backward_euler": 0.0, "trapezoidal": 0.5}  # work_rule -> P_THETA
 
 # --- state vector slots (per integration point) ------------------------------------------
 S_TT = 0  # tangential traction T_t [Pa]
@@ -63,6 +66,13 @@ class CohesiveLaw:
     alpha_psi: float
     kn: float | None = None  # None (or inf) -> rigid-plastic form
     kt: float | None = None
+    work_rule: str = "backward_euler"  # or "trapezoidal" (see rockfrac.laws.cohesive)
+
+    def __post_init__(self) -> None:
+        rule = getattr(self.work_rule, "value", self.work_rule)
+        if rule not in WORK_RULES:
+            raise ValueError(f"work_rule must be one of {sorted(WORK_RULES)}, got {self.work_rule!r}")
+        object.__setattr__(self, "work_rule", rule)
 
     @property
     def rigid(self) -> bool:
@@ -101,6 +111,7 @@ class CohesiveLaw:
         p[P_A_C] = self.alpha_c
         p[P_A_PHI] = self.alpha_phi
         p[P_A_PSI] = self.alpha_psi
+        p[P_THETA] = WORK_RULES[self.work_rule]
         return p
 
 

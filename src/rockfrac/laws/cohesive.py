@@ -550,16 +550,22 @@ def _elastic_tol(p):
 @nb.njit(cache=True)
 def _ep_elastic(t_tr, s_old, comp, s_new, D):
     """Elastic step: T = T^tr, D = K^e = diag(1/comp) [Pa/m], ISVs unchanged."""
+    return _elastic_scalars(t_tr[0], t_tr[1], comp[0], comp[1], s_old, s_new, D)
+
+
+@nb.njit(cache=True)
+def _elastic_scalars(tt, tn, ct, cn, s_old, s_new, D):
+    """:func:`_ep_elastic` on scalars (no array is allocated on the elastic path)."""
     for k in range(N_STATE):
         s_new[k] = s_old[k]
-    s_new[S_TT] = t_tr[0]
-    s_new[S_TN] = t_tr[1]
+    s_new[S_TT] = tt
+    s_new[S_TN] = tn
     s_new[S_DGAMMA] = 0.0
     s_new[S_MODE] = MODE_ELASTIC
-    D[0, 0] = 1.0 / comp[0]
+    D[0, 0] = 1.0 / ct
     D[0, 1] = 0.0
     D[1, 0] = 0.0
-    D[1, 1] = 1.0 / comp[1]
+    D[1, 1] = 1.0 / cn
     return ST_ELASTIC
 
 
@@ -617,6 +623,11 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
 @nb.njit(cache=True)
 def ep_update(du, s_old, p, s_new, D):
     """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m]."""
+    ct, cn = p[P_CT], p[P_CN]
+    tt = s_old[S_TT] + du[0] / ct  # the trial of return_map, checked here without allocating
+    tn = s_old[S_TN] + du[1] / cn
+    if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= _elastic_tol(p):
+        return _elastic_scalars(tt, tn, ct, cn, s_old, s_new, D)
     comp = np.empty(2)
     comp[0] = p[P_CT]
     comp[1] = p[P_CN]

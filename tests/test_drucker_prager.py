@@ -346,3 +346,59 @@ def test_vectorized_return_map_matches_the_pointwise_one():
         assert status[i] == st
         assert np.array_equal(sig[i], sg) and np.array_equal(c[i], cc) and np.array_equal(s_new[i], sn)
     assert {0, 1} <= set(status.tolist())
+
+
+# --- the closed-form kernel against the reference (the textbook loops it replaced) ----------------
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fast_return_map_equals_the_reference_to_round_off(seed):
+    """return_map (scalars, regrouped tangent) vs return_map_reference (Ce eps product, i, j loop):
+    the same status, and sigma, C, plastic strain, gamma within 1e-13 of their natural scales
+    (|Ce eps_e|, |Ce|, the strains); elastic, cone and apex points, 3D and plane strain, hardening
+    and softening, many orders of magnitude of moduli and strains."""
+    rng = np.random.default_rng(seed)
+    seen = set()
+    for _ in range(12):
+        lw = DruckerPrager.from_mohr_coulomb(10 ** rng.uniform(6, 10), rng.uniform(0.0, 0.45),
+                                             math.radians(rng.uniform(0, 50)), 10 ** rng.uniform(2, 6),
+                                             math.radians(rng.uniform(0, 40)), H=rng.uniform(-1e4, 1e6))
+        p, ce = lw.as_array(), lw.elastic_matrix()
+        n = 200
+        eps = rng.normal(scale=10 ** rng.uniform(-6, -2), size=(n, 6))
+        eps[: n // 3, 2:] = 0.0  # plane strain
+        eps[: n // 3, 3] = rng.normal(scale=1e-3, size=n // 3)
+        s_old = np.zeros((n, N_STATE))
+        s_old[:, :6] = rng.normal(scale=1e-4, size=(n, 6))
+        s_old[:, S_GAMMA] = np.abs(rng.normal(scale=1e-3, size=n))
+        for i in range(n):
+            a = (np.empty(6), np.empty((6, 6)), np.empty(N_STATE))
+            r = (np.empty(6), np.empty((6, 6)), np.empty(N_STATE))
+            st = dp.return_map(eps[i], s_old[i], p, *a)
+            assert dp.return_map_reference(eps[i], s_old[i], p, *r) == st
+            seen.add(st)
+            if st < 0:
+                continue
+            ee = eps[i] - s_old[i, :6]
+            sig_scale = np.abs(ce @ ee).max()
+            strain_scale = max(np.abs(ee).max(), np.abs(s_old[i, :6]).max())
+            assert np.abs(a[0] - r[0]).max() <= 1e-13 * sig_scale
+            assert np.abs(a[1] - r[1]).max() <= 1e-13 * np.abs(ce).max()
+            assert np.abs(a[2][:6] - r[2][:6]).max() <= 1e-13 * strain_scale
+            assert a[2][S_GAMMA] == pytest.approx(r[2][S_GAMMA], rel=1e-13, abs=1e-13 * strain_scale)
+            assert a[2][S_MODE] == r[2][S_MODE]
+            if st == 0:
+                assert np.array_equal(a[1], ce)  # the elastic tangent is Ce to the last bit
+                assert np.array_equal(a[2], r[2])
+    assert {0, 1, 2} <= seen
+
+
+def test_nan_strain_is_no_admissible_return():
+    p = law().as_array()
+    s_old = np.zeros(N_STATE)
+    s_old[S_GAMMA] = 0.5
+    eps = np.array([np.nan, 0, 0, 0, 0, 0])
+    for fn in (dp.return_map, dp.return_map_reference):
+        sig, c, s_new = np.zeros(6), np.zeros((6, 6)), np.zeros(N_STATE)
+        assert fn(eps, s_old, p, sig, c, s_new) == dp.ST_NO_RETURN
+        assert np.array_equal(s_new, s_old)

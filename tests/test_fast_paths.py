@@ -405,3 +405,102 @@ def test_plane_strain_minima_equal_the_dense_search():
     assert np.array_equal(cnt, cnt2) and cnt.min() >= 2  # the conjugate pair at least
     for i in range(30):
         assert np.array_equal(th[i, : cnt[i]], th2[i, : cnt[i]]) and np.array_equal(rr[i, : cnt[i]], rr2[i, : cnt[i]])
+
+
+def test_ep_points_equal_the_point_by_point_law_and_blocks():
+    """ep_points on scalars (no temporaries) is bit for bit ep_update + rotation + pair blocks."""
+    from rockfrac.elements import cse
+    from rockfrac.laws.cohesive import ep_update
+    from rockfrac.laws.cohesive_params import N_STATE, S_MODE, S_TN, S_TT, CohesiveLaw
+
+    rng = np.random.default_rng(7)
+    n = 400
+    law = CohesiveLaw(GfI=1e4, GfII=1e4, chi_p=15680.0, chi_r=0.0, c_p=9053.0, c_r=0.0, phi_p=0.5236,
+                      phi_r=0.0, psi_p=0.087, alpha_chi=2e3, alpha_c=2e3, alpha_phi=9e2, alpha_psi=9e2,
+                      kn=1e9, kt=1e9, work_rule="trapezoidal")
+    p = law.as_array()
+    ang = rng.uniform(0, np.pi, n)
+    frame = np.empty((n, 2, 2))
+    frame[:, 0, 0], frame[:, 0, 1] = np.cos(ang), np.sin(ang)
+    frame[:, 1, 0], frame[:, 1, 1] = -np.sin(ang), np.cos(ang)
+    weight = rng.uniform(0.5e-3, 1.5e-3, n)
+    djump = rng.uniform(-3e-5, 3e-5, (n, 2)) * (rng.uniform(size=(n, 1)) < 0.5)  # half elastic-small
+    djump += rng.uniform(-1e-7, 1e-7, (n, 2))
+    djump[:20] = 0.0  # committed plastic points at zero increment keep their state
+    s_old = np.zeros((n, N_STATE))
+    s_old[:20, S_MODE] = 1.0
+    s_old[:20, S_TT] = 10.0
+    d_old = rng.uniform(size=(n, 2, 2))
+    s_new, d_new = np.empty_like(s_old), np.empty_like(d_old)
+    fe, ke, status = np.empty((n, 4)), np.empty((n, 4, 4)), np.empty(n, dtype=np.int64)
+    cse.ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status)
+    assert 100 < np.sum(status == 1) < n - 100 and np.all(status >= 0)
+    for i in range(20, n):
+        r, j = frame[i], djump[i]
+        du = np.array([r[0, 0] * j[0] + r[0, 1] * j[1], r[1, 0] * j[0] + r[1, 1] * j[1]])
+        s1, d1 = np.empty(N_STATE), np.empty((2, 2))
+        assert ep_update(du, s_old[i], p, s1, d1) == status[i]
+        tg, dg = np.empty(2), np.empty((2, 2))
+        cse._rotate_back(frame[i], s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
+        f1, k1 = np.empty(4), np.empty((4, 4))
+        cse._pair_blocks(weight[i], tg, dg, f1, k1)
+        np.testing.assert_array_equal(s_new[i], s1)
+        np.testing.assert_array_equal(d_new[i], d1)
+        np.testing.assert_array_equal(fe[i], f1)
+        np.testing.assert_array_equal(ke[i], k1)
+    np.testing.assert_array_equal(d_new[:20], d_old[:20])
+
+
+def test_rp_points_equal_the_point_by_point_law_and_blocks():
+    """rp_points on scalars is bit for bit the law's return from lambda + rotation + the blocks of eq. 32-33."""
+    from rockfrac.elements import cse
+    from rockfrac.laws.cohesive import START_NONE, return_map_from
+    from rockfrac.laws.cohesive_params import N_STATE, S_TN, S_TT, CohesiveLaw
+
+    rng = np.random.default_rng(8)
+    n, aug = 300, 1e9
+    law = CohesiveLaw(GfI=1e4, GfII=1e4, chi_p=15680.0, chi_r=0.0, c_p=9053.0, c_r=0.0, phi_p=0.5236,
+                      phi_r=0.0, psi_p=0.087, alpha_chi=2e3, alpha_c=2e3, alpha_phi=9e2, alpha_psi=9e2)
+    p = law.as_array()
+    ang = rng.uniform(0, np.pi, n)
+    frame = np.empty((n, 2, 2))
+    frame[:, 0, 0], frame[:, 0, 1] = np.cos(ang), np.sin(ang)
+    frame[:, 1, 0], frame[:, 1, 1] = -np.sin(ang), np.cos(ang)
+    weight = rng.uniform(0.5e-3, 1.5e-3, n)
+    lam = rng.uniform(-100.0, 100.0, (n, 2))
+    djump = rng.uniform(-1e-12, 1e-12, (n, 2))
+    big = rng.uniform(size=n) < 0.5
+    djump[big] = np.column_stack([rng.uniform(-4e-5, 4e-5, big.sum()), rng.uniform(0, 2e-6, big.sum())])
+    s_old, d_old = np.zeros((n, N_STATE)), np.zeros((n, 2, 2))
+    s_new, d_new = np.empty_like(s_old), np.empty_like(d_old)
+    fe, ke = np.empty((n, 6)), np.empty((n, 6, 6))
+    status, switched = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    cse.rp_points(frame, weight, djump, lam, aug, np.zeros(n), np.zeros(n, dtype=bool), s_old, d_old,
+                  np.zeros(n), p, s_new, d_new, fe, ke, status, switched)
+    assert 50 < np.sum(status == 1) < n - 50
+    comp = np.array([1.0 / aug, 1.0 / aug])
+    for i in range(n):
+        r, j, w = frame[i], djump[i], weight[i]
+        h = np.array([r[0, 0] * j[0] + r[0, 1] * j[1], r[1, 0] * j[0] + r[1, 1] * j[1]])
+        s_lam = s_old[i].copy()
+        s_lam[S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]
+        s_lam[S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
+        s1, d1 = np.empty(N_STATE), np.empty((2, 2))
+        assert return_map_from(h, s_lam, s_old[i, S_TT:S_TN + 1].copy(), START_NONE, comp, p, s1, d1) == status[i]
+        tg, dg = np.empty(2), np.empty((2, 2))
+        cse._rotate_back(r, s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
+        f1, k1 = np.empty(6), np.empty((6, 6))
+        cse._pair_blocks(w, tg, dg, f1[:4], k1)
+        for a in range(2):
+            f1[4 + a] = w * (tg[a] - lam[i, a])
+            for b in range(2):
+                kab = w * dg[a, b]
+                k1[a, 4 + b] = -kab / aug
+                k1[2 + a, 4 + b] = kab / aug
+                k1[4 + a, b] = -kab
+                k1[4 + a, 2 + b] = kab
+                k1[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
+        np.testing.assert_array_equal(s_new[i], s1)
+        np.testing.assert_array_equal(d_new[i], d1)
+        np.testing.assert_array_equal(fe[i], f1)
+        np.testing.assert_array_equal(ke[i], k1)

@@ -15,8 +15,16 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from rockfrac.laws.cohesive import START_GIVEN, START_NONE, ep_update, return_map_from
-from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_MODE, S_TN, S_TT
+from rockfrac.laws.cohesive import (
+    START_GIVEN,
+    START_NONE,
+    elastic_tolerance,
+    elastic_update,
+    ep_update_jump,
+    return_map_from,
+    yield_function,
+)
+from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT
 
 
 @nb.njit(cache=True, inline="always")
@@ -48,6 +56,29 @@ def _pair_blocks(w: float, tg: np.ndarray, dg: np.ndarray, fe: np.ndarray, ke: n
 
 
 @nb.njit(cache=True, inline="always")
+def _pair_blocks_local(r, w, t_t, t_n, d, fe, ke):
+    """:func:`_rotate_back` then :func:`_pair_blocks` from the local traction (t_t, t_n) on scalars
+    (same operations in the same order, no temporary arrays)."""
+    tg0 = r[0, 0] * t_t + r[1, 0] * t_n
+    tg1 = r[0, 1] * t_t + r[1, 1] * t_n
+    fe[0] = -w * tg0
+    fe[1] = -w * tg1
+    fe[2] = w * tg0
+    fe[3] = w * tg1
+    for i in range(2):
+        for j in range(2):
+            s = 0.0
+            for a in range(2):
+                for b in range(2):
+                    s += r[a, i] * d[a, b] * r[b, j]
+            k = w * s
+            ke[i, j] = k
+            ke[i, 2 + j] = -k
+            ke[2 + i, j] = -k
+            ke[2 + i, 2 + j] = k
+
+
+@nb.njit(cache=True, inline="always")
 def _keep_committed(s_old, d_old, s_new, d_new):
     """Start of a step at a committed plastic point: same traction, committed tangent."""
     s_new[:] = s_old
@@ -64,18 +95,14 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
     """
     for i in nb.prange(frame.shape[0]):
         r = frame[i]
-        du = np.empty(2)
-        du[0] = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
-        du[1] = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
-        if du[0] == 0.0 and du[1] == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
+        du_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
+        du_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
+        if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
             _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
             status[i] = 1
         else:
-            status[i] = ep_update(du, s_old[i], p, s_new[i], d_new[i])
-        tg = np.empty(2)
-        dg = np.empty((2, 2))
-        _rotate_back(r, s_new[i, S_TT : S_TN + 1], d_new[i], tg, dg)
-        _pair_blocks(weight[i], tg, dg, fe[i], ke[i])
+            status[i] = ep_update_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i])
+        _pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
 
 
 @nb.njit(cache=True, parallel=True)
@@ -102,16 +129,15 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
     for i in nb.prange(frame.shape[0]):
         r = frame[i]
         w = weight[i]
-        h = np.empty(2)
-        h[0] = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
-        h[1] = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
-        if h[0] == 0.0 and h[1] == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
+        h_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
+        h_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
+        if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
             _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
             status[i] = 1
         elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
             s_new[i, :] = s_old[i, :]
-            s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h[0]
-            s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h[1]
+            s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t
+            s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n
             s_new[i, S_DGAMMA] = 0.0
             s_new[i, S_MODE] = 0.0
             d_new[i, :, :] = 0.0
@@ -119,23 +145,32 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
             d_new[i, 1, 1] = aug
             status[i] = 0
         else:
-            s_lam = s_old[i].copy()  # return from T_old := lambda (local frame)
-            s_lam[S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]
-            s_lam[S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
-            # the work rule's flow starts at the committed traction of a committed plastic point
-            start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
-            status[i] = return_map_from(h, s_lam, s_old[i, S_TT : S_TN + 1], start, comp, p, s_new[i], d_new[i])
+            lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
+            lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
+            tt = lam_t + h_t / comp[0]  # return_map's trial and test, without allocating
+            tn = lam_n + h_n / comp[1]
+            if yield_function(tt, tn, s_old[i, S_EPSN], s_old[i, S_EPSS], p) <= elastic_tolerance(p):
+                status[i] = elastic_update(tt, tn, comp[0], comp[1], s_old[i], s_new[i], d_new[i])
+            else:
+                h = np.empty(2)
+                h[0] = h_t
+                h[1] = h_n
+                s_lam = s_old[i].copy()
+                s_lam[S_TT] = lam_t
+                s_lam[S_TN] = lam_n
+                # the work rule's flow starts at the committed traction of a committed plastic point
+                start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+                status[i] = return_map_from(h, s_lam, s_old[i, S_TT : S_TN + 1], start, comp, p, s_new[i],
+                                            d_new[i])
         switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
-        tg = np.empty(2)
-        dg = np.empty((2, 2))
-        _rotate_back(r, s_new[i, S_TT : S_TN + 1], d_new[i], tg, dg)
         fi = fe[i]
         ki = ke[i]
-        _pair_blocks(w, tg, dg, fi, ki)
+        _pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
         for a in range(2):
-            fi[4 + a] = w * (tg[a] - lam[i, a])
+            tg_a = r[0, a] * s_new[i, S_TT] + r[1, a] * s_new[i, S_TN]
+            fi[4 + a] = w * (tg_a - lam[i, a])
             for b in range(2):
-                kab = w * dg[a, b]
+                kab = ki[a, b]  # w R^T D R, as _pair_blocks_local wrote it
                 # dT/dlambda = D / r; dT/d[[u]] = D; d(T - lambda)/dlambda = D / r - I
                 ki[a, 4 + b] = -kab / aug
                 ki[2 + a, 4 + b] = kab / aug

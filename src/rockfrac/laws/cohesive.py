@@ -500,7 +500,7 @@ def _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws):
     chi, c, tphi, _ = strengths(en_old, es_old, p)
     tt, tn = t_s[0], t_s[1]
     dtt0 = dtt1 = dtn0 = dtn1 = 0.0  # dT_s/d(du)
-    if start == START_CROSSING and yield_function(tt, tn, en_old, es_old, p) < -_elastic_tol(p):
+    if start == START_CROSSING and yield_function(tt, tn, en_old, es_old, p) < -elastic_tolerance(p):
         kdt, kdn = du[0] / comp[0], du[1] / comp[1]
         a_f = c - chi * tphi
         a = 1.0
@@ -542,7 +542,7 @@ def _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws):
 
 
 @nb.njit(cache=True)
-def _elastic_tol(p):
+def elastic_tolerance(p):
     """Yield tolerance [Pa]: F <= tol is elastic."""
     return 1.0e-10 * max(p[P_C_P], p[P_CHI_P], 1.0)
 
@@ -550,12 +550,12 @@ def _elastic_tol(p):
 @nb.njit(cache=True)
 def _ep_elastic(t_tr, s_old, comp, s_new, D):
     """Elastic step: T = T^tr, D = K^e = diag(1/comp) [Pa/m], ISVs unchanged."""
-    return _elastic_scalars(t_tr[0], t_tr[1], comp[0], comp[1], s_old, s_new, D)
+    return elastic_update(t_tr[0], t_tr[1], comp[0], comp[1], s_old, s_new, D)
 
 
 @nb.njit(cache=True)
-def _elastic_scalars(tt, tn, ct, cn, s_old, s_new, D):
-    """:func:`_ep_elastic` on scalars (no array is allocated on the elastic path)."""
+def elastic_update(tt, tn, ct, cn, s_old, s_new, D):
+    """Elastic step on scalars: T = (tt, tn) [Pa], D = diag(1/ct, 1/cn) [Pa/m], ISVs unchanged."""
     for k in range(N_STATE):
         s_new[k] = s_old[k]
     s_new[S_TT] = tt
@@ -598,7 +598,7 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
     t_tr = np.empty(2)  # trial traction T^tr = T_n + K^e du (eq. 31)
     t_tr[0] = t_old[0] + du[0] / comp[0]
     t_tr[1] = t_old[1] + du[1] / comp[1]
-    if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= _elastic_tol(p):
+    if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= elastic_tolerance(p):
         return _ep_elastic(t_tr, s_old, comp, s_new, D)
     ws = np.empty(3)
     dws = np.empty((2, 2))
@@ -623,14 +623,23 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
 @nb.njit(cache=True)
 def ep_update(du, s_old, p, s_new, D):
     """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m]."""
+    return ep_update_jump(du[0], du[1], s_old, p, s_new, D)
+
+
+@nb.njit(cache=True)
+def ep_update_jump(du_t, du_n, s_old, p, s_new, D):
+    """:func:`ep_update` for the increment (du_t, du_n) [m]; an elastic point allocates nothing."""
     ct, cn = p[P_CT], p[P_CN]
-    tt = s_old[S_TT] + du[0] / ct  # the trial of return_map, checked here without allocating
-    tn = s_old[S_TN] + du[1] / cn
-    if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= _elastic_tol(p):
-        return _elastic_scalars(tt, tn, ct, cn, s_old, s_new, D)
+    tt = s_old[S_TT] + du_t / ct  # the trial of return_map, checked here without allocating
+    tn = s_old[S_TN] + du_n / cn
+    if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
+        return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
+    du = np.empty(2)
+    du[0] = du_t
+    du[1] = du_n
     comp = np.empty(2)
-    comp[0] = p[P_CT]
-    comp[1] = p[P_CN]
+    comp[0] = ct
+    comp[1] = cn
     return return_map(du, s_old, comp, p, s_new, D)
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from rockfrac import threads
 from rockfrac.case.build import build
 from rockfrac.case.schema import load_case
 from rockfrac.elements import plastic_solid
@@ -127,9 +128,10 @@ def test_drucker_prager_cells_fast_equal_reference_and_numpy():
     assert np.abs(ev.fe - fe_np).max() <= 1e-12 * np.abs(fe_np).max()
 
 
-def test_serial_and_two_threads_agree():
+def test_serial_and_two_threads_agree(monkeypatch):
     if nb.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one thread only")
+    monkeypatch.setattr(threads, "SOLID_CELLS", 0)  # 256 cells: keep the two threads asked for below
     solid, u = solid_state(16)
     saved = nb.get_num_threads()
     try:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rockfrac import threads
 from rockfrac.elements import cse
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.elements.solid import Evaluation
@@ -131,8 +132,8 @@ class CohesiveEP(_CohesiveGroup):
         n = pts.n
         fe = np.empty((n, 4))
         ke = np.empty((n, 4, 4))
-        cse.ep_points(pts.frame, pts.weight, djump, self.state, self.tangent, self.p, self.trial,
-                      self.trial_tangent, fe, ke, self.status)
+        threads.serial_below(n, threads.COHESIVE_POINTS, cse.ep_points, pts.frame, pts.weight, djump,
+                             self.state, self.tangent, self.p, self.trial, self.trial_tangent, fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)
@@ -206,9 +207,9 @@ class CohesiveRP(_CohesiveGroup):
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, S_MODE].copy()
-        cse.rp_points(pts.frame, pts.weight, djump, self.multipliers(u), self.aug, self.eps, self._pinned,
-                      self.state, self.tangent, mode_prev, self.p, self.trial, self.trial_tangent, fe, ke,
-                      self.status, switched)
+        threads.serial_below(n, threads.COHESIVE_POINTS, cse.rp_points, pts.frame, pts.weight, djump,
+                             self.multipliers(u), self.aug, self.eps, self._pinned, self.state, self.tangent,
+                             mode_prev, self.p, self.trial, self.trial_tangent, fe, ke, self.status, switched)
         # active-set pinning: a point chattering between constrained and plastic (on its yield
         # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
         # only if its traction is inside the surface, else it is released (once per step)

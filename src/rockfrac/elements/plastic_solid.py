@@ -5,6 +5,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from rockfrac import threads
 from rockfrac.elements.solid import Evaluation, SolidGeometry
 from rockfrac.fem.kinematics import b_matrix
 from rockfrac.fem.reference import ReferenceElement
@@ -203,8 +204,9 @@ class DruckerPragerSolid(SolidGeometry):
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         fe, ke = self.element_buffers()
-        dp_blocks(self.grads, self.wdet, np.ascontiguousarray(u[self.dofs]), self.state, self.p, self.trial,
-                  self.trial_sigma, fe, ke, self.status)
+        threads.serial_below(self.grads.shape[0], threads.SOLID_CELLS, dp_blocks, self.grads, self.wdet,
+                             np.ascontiguousarray(u[self.dofs]), self.state, self.p, self.trial, self.trial_sigma,
+                             fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = (f"Drucker-Prager return failed in cells {bad[:5].tolist()} (no admissible return)"
                if bad.size else "")

@@ -95,9 +95,19 @@ class Pardiso(_Backend):
     computed from the analysed matrix's values, so the factors depend on the matrix analysed, and
     a run resumed from a checkpoint (at a step's start) must analyse where the uninterrupted run
     did to stay bit for bit the same; it also keeps the matching fit for the step's tangents.
+
+    Systems of fewer than ``serial_below`` rows run every phase on one thread, through MKL's
+    thread-local setting (``mkl_set_num_threads_local``, restored after each call; the process-wide
+    MKL setting and other threads are untouched). MKL's OpenMP threads pay off only on an idle
+    machine: at 1e4 dofs 1.3-1.5x faster than one thread in the Newton loop, while one other busy
+    process on these 2-core machines made them 6x slower (and 15x at 1e3 dofs); from 5e4 dofs
+    they were even under that load. A system keeps one thread count through all its phases (the
+    count depends on its size only). Where the MKL runtime lacks the symbol, MKL's default is used
+    (benchmarks/README.md, "Serial path for small systems").
     """
 
     name = "pardiso"
+    serial_below = 30_000  # rows below which PARDISO runs on one thread (see the class note)
 
     def __init__(self) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
@@ -109,6 +119,27 @@ class Pardiso(_Backend):
         self._new_step = False
         self.generation = 0  # factorizations done; a factor object is valid for its own only
         self.analyses = 0  # symbolic analyses done (phase 11)
+        self._rows = 0  # rows of the analysed pattern
+        self._set_threads_local = None  # MKL's mkl_set_num_threads_local, once the runtime is loaded
+        self.threads_used: int | None = None  # MKL thread-local setting of the last call (0: MKL's default)
+
+    @staticmethod
+    def _threads_function(libmkl):
+        """MKL's ``mkl_set_num_threads_local`` from the loaded runtime, or None where it is missing.
+
+        The C function (by value) is exported as ``MKL_Set_Num_Threads_Local``: mkl_service.h maps
+        the lower-case name to it, and the lower-case symbol in mkl_rt is the Fortran interface,
+        which takes a pointer (called with a plain int it crashes).
+        """
+        import ctypes
+
+        try:
+            f = libmkl.MKL_Set_Num_Threads_Local
+        except AttributeError:  # an MKL without it: stay with MKL's default threads
+            return None
+        f.argtypes = [ctypes.c_int]
+        f.restype = ctypes.c_int
+        return f
 
     def _call(self, phase: int, a: sp.csr_matrix | None, b: np.ndarray) -> np.ndarray:
         """One PARDISO call on the analysed pattern (``a``'s values) with right-hand sides ``b``."""
@@ -124,14 +155,22 @@ class Pardiso(_Backend):
         data = np.zeros(1) if a is None else a.data
         ia = np.zeros(1, np.int32) if a is None else self._ia
         ja = np.zeros(1, np.int32) if a is None else self._ja
-        s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])),
-                       ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
-                       ctypes.byref(ctypes.c_int32(11)), ctypes.byref(ctypes.c_int32(phase)),
-                       ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(f64),
-                       ia.ctypes.data_as(i32), ja.ctypes.data_as(i32), s.perm.ctypes.data_as(i32),
-                       ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
-                       s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
-                       b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+        # a small system: one MKL thread for this call (thread-local; the previous setting restored)
+        set_local = self._set_threads_local if self._rows < self.serial_below else None
+        previous = set_local(1) if set_local is not None else None
+        self.threads_used = 1 if set_local is not None else 0
+        try:
+            s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])),
+                           ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
+                           ctypes.byref(ctypes.c_int32(11)), ctypes.byref(ctypes.c_int32(phase)),
+                           ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(f64),
+                           ia.ctypes.data_as(i32), ja.ctypes.data_as(i32), s.perm.ctypes.data_as(i32),
+                           ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
+                           s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
+                           b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+        finally:
+            if previous is not None:
+                set_local(previous)
         if err.value != 0:
             raise SolverFailed(str(PyPardisoError(err.value)))
         return x
@@ -151,10 +190,12 @@ class Pardiso(_Backend):
 
         if self._solver is None:
             self._solver = pypardiso.PyPardisoSolver(mtype=11)
+            self._set_threads_local = self._threads_function(self._solver.libmkl)
         self._release(everything=True)
         if not np.diff(a.indptr).all():
             raise SolverFailed("matrix has an empty row (singular)")
         self._pattern = _Pattern(a)
+        self._rows = a.shape[0]
         self._ia = (a.indptr + 1).astype(np.int32)
         self._ja = (a.indices + 1).astype(np.int32)
         self._call(11, a, np.zeros((a.shape[0], 1)))

@@ -13,18 +13,39 @@ of the largest so far) below tolerance, element-level equations of condensed unk
 embedded jumps) met to the residual tolerance, and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
 Every iteration is logged.
+
+The norms and dot products of the convergence test are a serial compiled loop, not NumPy's BLAS:
+from 1e4 entries on OpenBLAS splits a dot product over its threads, and waking them cost up to
+9 ms a call on a busy machine for microseconds of work (benchmarks/README.md, "Serial path for
+small systems"); the loop is also faster than one-threaded BLAS up to 1e6 entries.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numba as nb
 import numpy as np
 
 from rockfrac.model import Model
 from rockfrac.solve.linear import LinearSolver
+
+
+@nb.njit(cache=True, fastmath={"reassoc"})
+def _dot(x: np.ndarray, y: np.ndarray) -> float:
+    """x . y on one thread (reassociated: the compiler vectorizes the sum, as BLAS does)."""
+    s = 0.0
+    for i in range(x.shape[0]):
+        s += x[i] * y[i]
+    return s
+
+
+def _norm(x: np.ndarray) -> float:
+    """Euclidean norm without BLAS threads (see the module note)."""
+    return math.sqrt(_dot(x, x))
 
 
 @dataclass(frozen=True)
@@ -106,8 +127,8 @@ def newton_step(
     pending = None  # the assembly at u made by the line search
 
     def relative(asm, f_ext) -> float:
-        ref = max(np.linalg.norm(f_ext[free]), np.linalg.norm(asm.residual[dofs_d]), options.force_scale)
-        return float(np.linalg.norm(asm.residual[free]) / ref)
+        ref = max(_norm(f_ext[free]), _norm(asm.residual[dofs_d]), options.force_scale)
+        return _norm(asm.residual[free]) / ref
 
     for it in range(options.max_iterations + 1):
         f_ext = loads.forces(u_lam)
@@ -132,7 +153,7 @@ def newton_step(
             g, grad = control.measure(u)
             g_ok = abs(g - control.target) <= control.tolerance
         if it > 0:
-            rel_e = abs(float(last_du[free] @ r[free])) / energy0 if energy0 else 0.0
+            rel_e = abs(_dot(last_du[free], r[free])) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
             # a state switch in this iterate (constrained <-> plastic) is part of the residual just
             # computed (multiplier rows included), so a small residual is an equilibrium of it: a
@@ -161,9 +182,9 @@ def newton_step(
             du = lu.solve(rhs)
             if control is not None:
                 du_b = lu.solve(rhs_b)
-                slope = grad @ du_b
-                if abs(slope) > 1e-12 * np.linalg.norm(grad) * np.linalg.norm(du_b):
-                    dlam = (control.target - g - grad @ du) / slope
+                slope = _dot(grad, du_b)
+                if abs(slope) > 1e-12 * _norm(grad) * _norm(du_b):
+                    dlam = (control.target - g - _dot(grad, du)) / slope
                 else:  # rigid (all constrained): g cannot move yet, so push the load instead
                     dlam = control.predictor
                 du = du + dlam * du_b
@@ -176,7 +197,7 @@ def newton_step(
         if not np.all(np.isfinite(du)):
             result.message = f"iteration {it}: singular or ill-conditioned tangent"
             return result
-        energy0 = max(energy0 or 0.0, abs(float(du[free] @ rhs[free])))  # largest so far
+        energy0 = max(energy0 or 0.0, abs(_dot(du[free], rhs[free])))  # largest so far
         if it >= 2 and options.line_search:
             # line search: the full correction is assembled (and reused next iteration); halved
             # while it raises the residual (breaks the flip-flop of a point on its yield surface)

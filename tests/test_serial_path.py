@@ -1,0 +1,198 @@
+"""The serial path for small systems (benchmarks/README.md, "Serial path for small systems"):
+PARDISO on one MKL thread below ``Pardiso.serial_below`` rows (thread-local, restored after each
+call, MKL's default where the symbol is missing), Numba kernels on one thread below their item
+thresholds (``rockfrac.threads``), Newton's norms without BLAS; the same results either way."""
+
+import math
+import subprocess
+import sys
+import threading
+import types
+
+import numba as nb
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import paper_case
+
+from rockfrac import threads
+from rockfrac.case.build import build
+from rockfrac.case.schema import parse_case
+from rockfrac.run import history_row
+from rockfrac.solve import linear
+from rockfrac.solve.newton import NewtonOptions, _dot, _norm
+from rockfrac.solve.stepping import SteppingOptions, run_stages
+
+needs_pardiso = pytest.mark.skipif("pardiso" not in linear.available(), reason="pypardiso not installed")
+
+
+def tridiagonal(n: int) -> sp.csr_matrix:
+    return sp.diags([np.full(n - 1, -1.0), np.full(n, 4.0), np.full(n - 1, -1.5)], [-1, 0, 1], format="csr")
+
+
+def mkl_default(lib) -> int:
+    """MKL's process-wide thread count: read on a fresh thread (the setting is thread-local)."""
+    out = []
+    t = threading.Thread(target=lambda: out.append(lib.MKL_Get_Max_Threads()))
+    t.start()
+    t.join()
+    return out[0]
+
+
+def recorded_threads(solver: linear.Pardiso, a: sp.csr_matrix) -> tuple[list[int], int, int, np.ndarray]:
+    """MKL's process-wide thread count, the count inside every PARDISO call of a release, an
+    analysis, a factorization and a solve, the count on this thread after them; and the solution."""
+    solver.factorize(a)  # loads the runtime (the first analysis)
+    lib = solver._solver.libmkl
+    inner = solver._solver._mkl_pardiso
+    seen = []
+
+    def wrapped(*args):
+        seen.append(lib.MKL_Get_Max_Threads())
+        return inner(*args)
+
+    before = mkl_default(lib)
+    solver._solver._mkl_pardiso = wrapped
+    try:
+        solver.begin_step()  # analysis, factorization and solve all seen
+        x = solver.factorize(a).solve(np.ones(a.shape[0]))
+    finally:
+        solver._solver._mkl_pardiso = inner
+    return seen, before, lib.MKL_Get_Max_Threads(), x
+
+
+@needs_pardiso
+def test_mkl_thread_local_symbol_is_found_here():
+    solver = linear.Pardiso()
+    solver.factorize(tridiagonal(50))
+    assert solver._set_threads_local is not None
+    assert solver._set_threads_local.__name__ == "MKL_Set_Num_Threads_Local"
+
+
+@needs_pardiso
+def test_pardiso_runs_one_thread_below_the_threshold_and_mkl_default_above():
+    a = tridiagonal(600)
+    small = linear.Pardiso()
+    assert a.shape[0] < small.serial_below
+    seen, default, after, x_serial = recorded_threads(small, a)
+    if default < 2:
+        pytest.skip("MKL runs one thread here anyway")
+    assert len(seen) == 4 and set(seen) == {1} and small.threads_used == 1  # phases -1, 11, 22, 33
+    assert after == default  # the thread-local setting restored
+    large = linear.Pardiso()
+    large.serial_below = 100  # the same matrix counts as large
+    seen, _, after, x_threaded = recorded_threads(large, a)
+    assert set(seen) == {default} and after == default and large.threads_used == 0
+    at_threshold = linear.Pardiso()  # the class's threshold: a system of that many rows is large
+    seen, _, _, _ = recorded_threads(at_threshold, tridiagonal(linear.Pardiso.serial_below))
+    assert set(seen) == {default} and at_threshold.threads_used == 0
+    # different thread counts may round differently; this system is well conditioned
+    assert np.abs(x_serial - x_threaded).max() <= 1e-14 * np.abs(x_serial).max()
+    assert np.abs(a @ x_serial - 1.0).max() < 1e-13
+
+
+@needs_pardiso
+def test_a_small_pardiso_system_starts_no_mkl_threads():
+    """MKL's OpenMP pool is created at its first parallel region: in a fresh process a small
+    system must not create it; the same system with the threshold at 0 then does (where MKL has
+    more than one thread)."""
+    code = """if True:
+        import os
+        import numpy as np
+        import scipy.sparse as sp
+        from rockfrac.solve.linear import Pardiso
+        n = 3000
+        a = sp.diags([np.full(n - 1, -1.0), np.full(n, 4.0), np.full(n - 1, -1.0)], [-1, 0, 1], format="csr")
+        count = [len(os.listdir("/proc/self/task"))]
+        for below in (30_000, 0):
+            p = Pardiso()
+            p.serial_below = below
+            p.factorize(a).solve(np.ones(n))
+            count.append(len(os.listdir("/proc/self/task")))
+        print(*count, p._solver.libmkl.MKL_Get_Max_Threads())
+    """
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    start, after_serial, after_threaded, mkl_threads = (int(v) for v in out.stdout.split())
+    assert after_serial == start
+    if mkl_threads > 1:
+        assert after_threaded > start
+
+
+@needs_pardiso
+def test_without_the_symbol_pardiso_keeps_mkl_default(monkeypatch):
+    found = linear.Pardiso._threads_function
+    monkeypatch.setattr(linear.Pardiso, "_threads_function",
+                        staticmethod(lambda libmkl: found(types.SimpleNamespace())))  # an MKL without it
+    solver = linear.Pardiso()
+    a = tridiagonal(600)
+    seen, default, after, x = recorded_threads(solver, a)
+    assert solver._set_threads_local is None and solver.threads_used == 0
+    assert set(seen) == {default} and after == default  # MKL's own setting throughout
+    assert np.abs(a @ x - 1.0).max() < 1e-13
+
+
+@nb.njit(parallel=True)
+def _threads_inside(out):
+    for i in nb.prange(out.shape[0]):
+        out[i] = nb.get_num_threads()
+
+
+def test_numba_kernels_run_one_thread_below_their_threshold():
+    if nb.get_num_threads() < 2:
+        pytest.skip("one Numba thread only")
+    default = nb.get_num_threads()
+    out = np.zeros(4, dtype=np.int64)
+    threads.serial_below(4, 5, _threads_inside, out)
+    assert set(out) == {1} and nb.get_num_threads() == default
+    threads.serial_below(4, 4, _threads_inside, out)
+    assert set(out) == {default}
+    with pytest.raises(nb.core.errors.TypingError):  # restored after a failing call too
+        threads.serial_below(4, 5, _threads_inside, "not an array")
+    assert nb.get_num_threads() == default
+
+
+@pytest.mark.parametrize("n", [1000, 10_000, 100_000, 1_000_000])
+def test_newton_norms_equal_numpy(n):
+    x = np.random.default_rng(n).standard_normal(n)
+    y = np.random.default_rng(n + 1).standard_normal(n)
+    assert abs(_norm(x) - np.linalg.norm(x)) <= 1e-14 * np.linalg.norm(x)
+    assert abs(_dot(x, y) - x @ y) <= 1e-14 * np.linalg.norm(x) * np.linalg.norm(y)
+    assert math.isnan(_norm(np.array([1.0, np.nan]))) and _norm(np.array([np.inf, 1.0])) == np.inf
+
+
+def run(case: dict, serial: bool, monkeypatch) -> tuple[np.ndarray, np.ndarray]:
+    """(load factor, axial force, Newton iterations) per step and the final displacements of a run
+    with the serial path everywhere (serial) or nowhere (every threshold 0)."""
+    built = build(parse_case(case, "t.toml"))
+    solver = linear.make_solver("auto")
+    solver.serial_below = 10**9 if serial else 0  # read by PARDISO only
+    monkeypatch.setattr(threads, "COHESIVE_POINTS", 10**9 if serial else 0)
+    monkeypatch.setattr(threads, "SOLID_CELLS", 10**9 if serial else 0)
+    rows = []
+    run_stages(built.model, built.stages, solver, NewtonOptions(), SteppingOptions(),
+               lambda info: rows.append((info.load_factor, history_row(built, info, None)["F_axial"],
+                                         info.newton.iterations, info.u.copy())))
+    return np.array([r[:3] for r in rows]), rows[-1][3]
+
+
+def specimen_case(kind: str) -> dict:
+    if kind == "ep cse":
+        case = paper_case("ep", k=1e9, axial_steps=12)  # past the peak: 8 of 12 steps plastic
+        case["mesh"].update(nx=6, ny=6)
+        return case
+    return {"mesh": {"kind": "specimen", "crack": False, "nx": 6, "ny": 6},
+            "bulk": {"model": "drucker_prager", "E": 1.5e7, "nu": 0.3, "beta": 0.480385, "b": 0.321597,
+                     "kappa0": 7532.54, "H": 43802.9},
+            "loading": {"confinement": 2e4, "confinement_steps": 1, "axial_displacement": 2e-3, "axial_steps": 5}}
+
+
+@pytest.mark.parametrize("kind", ["ep cse", "drucker-prager"])
+def test_serial_and_threaded_paths_give_the_same_run(kind, monkeypatch):
+    """Same steps, same Newton iterations, forces and displacements equal to 1e-10 relative (only
+    PARDISO's thread count may change the rounding; the Numba kernels are bit for bit the same)."""
+    serial, u_serial = run(specimen_case(kind), True, monkeypatch)
+    threaded, u_threaded = run(specimen_case(kind), False, monkeypatch)
+    assert serial.shape == threaded.shape and np.array_equal(serial[:, 2], threaded[:, 2])
+    assert serial[:, 2].max() >= 4  # plastic steps: the return maps ran
+    assert np.abs(serial[:, 1] - threaded[:, 1]).max() <= 1e-10 * np.abs(serial[:, 1]).max()
+    assert np.abs(u_serial - u_threaded).max() <= 1e-10 * np.abs(u_serial).max()

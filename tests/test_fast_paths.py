@@ -409,6 +409,32 @@ def test_plane_strain_minima_equal_the_dense_search():
         assert np.array_equal(th[i, : cnt[i]], th2[i, : cnt[i]]) and np.array_equal(rr[i, : cnt[i]], rr2[i, : cnt[i]])
 
 
+def _rotate_back(r, t, d, tg, dg):
+    """Reference: global traction tg = R^T t and tangent dg = R^T d R (the loops the kernel had)."""
+    for i in range(2):
+        tg[i] = r[0, i] * t[0] + r[1, i] * t[1]
+    for i in range(2):
+        for j in range(2):
+            s = 0.0
+            for a in range(2):
+                for b in range(2):
+                    s += r[a, i] * d[a, b] * r[b, j]
+            dg[i, j] = s
+
+
+def _pair_blocks(w, tg, dg, fe, ke):
+    """Reference: force and stiffness of one node pair, dofs (minus x, minus y, plus x, plus y)."""
+    for i in range(2):
+        fe[i] = -w * tg[i]
+        fe[2 + i] = w * tg[i]
+        for j in range(2):
+            k = w * dg[i, j]
+            ke[i, j] = k
+            ke[i, 2 + j] = -k
+            ke[2 + i, j] = -k
+            ke[2 + i, 2 + j] = k
+
+
 def test_ep_points_equal_the_point_by_point_law_and_blocks():
     """ep_points on scalars (no temporaries) is bit for bit ep_update + rotation + pair blocks."""
     from rockfrac.elements import cse
@@ -443,9 +469,9 @@ def test_ep_points_equal_the_point_by_point_law_and_blocks():
         s1, d1 = np.empty(N_STATE), np.empty((2, 2))
         assert ep_update(du, s_old[i], p, s1, d1) == status[i]
         tg, dg = np.empty(2), np.empty((2, 2))
-        cse._rotate_back(frame[i], s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
+        _rotate_back(frame[i], s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
         f1, k1 = np.empty(4), np.empty((4, 4))
-        cse._pair_blocks(weight[i], tg, dg, f1, k1)
+        _pair_blocks(weight[i], tg, dg, f1, k1)
         np.testing.assert_array_equal(s_new[i], s1)
         np.testing.assert_array_equal(d_new[i], d1)
         np.testing.assert_array_equal(fe[i], f1)
@@ -490,9 +516,9 @@ def test_rp_points_equal_the_point_by_point_law_and_blocks():
         s1, d1 = np.empty(N_STATE), np.empty((2, 2))
         assert return_map_from(h, s_lam, s_old[i, S_TT:S_TN + 1].copy(), START_NONE, comp, p, s1, d1) == status[i]
         tg, dg = np.empty(2), np.empty((2, 2))
-        cse._rotate_back(r, s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
+        _rotate_back(r, s1[S_TT:S_TN + 1].copy(), d1, tg, dg)
         f1, k1 = np.empty(6), np.empty((6, 6))
-        cse._pair_blocks(w, tg, dg, f1[:4], k1)
+        _pair_blocks(w, tg, dg, f1[:4], k1)
         for a in range(2):
             f1[4 + a] = w * (tg[a] - lam[i, a])
             for b in range(2):

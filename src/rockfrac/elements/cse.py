@@ -28,37 +28,9 @@ from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_EPSN, S_EPSS
 
 
 @nb.njit(cache=True, inline="always")
-def _rotate_back(r: np.ndarray, t: np.ndarray, d: np.ndarray, tg: np.ndarray, dg: np.ndarray) -> None:
-    """Global traction tg = R^T t and tangent dg = R^T d R."""
-    for i in range(2):
-        tg[i] = r[0, i] * t[0] + r[1, i] * t[1]
-    for i in range(2):
-        for j in range(2):
-            s = 0.0
-            for a in range(2):
-                for b in range(2):
-                    s += r[a, i] * d[a, b] * r[b, j]
-            dg[i, j] = s
-
-
-@nb.njit(cache=True, inline="always")
-def _pair_blocks(w: float, tg: np.ndarray, dg: np.ndarray, fe: np.ndarray, ke: np.ndarray) -> None:
-    """Force and stiffness of one node pair: dofs (minus x, minus y, plus x, plus y)."""
-    for i in range(2):
-        fe[i] = -w * tg[i]
-        fe[2 + i] = w * tg[i]
-        for j in range(2):
-            k = w * dg[i, j]
-            ke[i, j] = k
-            ke[i, 2 + j] = -k
-            ke[2 + i, j] = -k
-            ke[2 + i, 2 + j] = k
-
-
-@nb.njit(cache=True, inline="always")
 def _pair_blocks_local(r, w, t_t, t_n, d, fe, ke):
-    """:func:`_rotate_back` then :func:`_pair_blocks` from the local traction (t_t, t_n) on scalars
-    (same operations in the same order, no temporary arrays)."""
+    """Force and stiffness of one node pair, dofs (minus x, minus y, plus x, plus y), from the local
+    traction (t_t, t_n) and tangent d: global T_g = R^T t, D_g = R^T d R; on scalars, no temporaries."""
     tg0 = r[0, 0] * t_t + r[1, 0] * t_n
     tg1 = r[0, 1] * t_t + r[1, 1] * t_n
     fe[0] = -w * tg0

@@ -155,7 +155,7 @@ def test_local_jacobian_matches_finite_differences(ws):
     for comp in (np.array([1e-9, 1e-9]), np.zeros(2)):
         for x in points:
             r, jac = np.zeros(5), np.zeros((5, 5))
-            law._system(x, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, r, jac)
+            law._system(x, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, r, jac)
             jac_fd = np.zeros((5, 5))
             for j in range(5):
                 h = 1e-6 * abs(x[j])
@@ -163,8 +163,8 @@ def test_local_jacobian_matches_finite_differences(ws):
                 xp, xm = x.copy(), x.copy()
                 xp[j] += h
                 xm[j] -= h
-                law._system(xp, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, rp_, np.zeros((5, 5)))
-                law._system(xm, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, 0.0, rm_, np.zeros((5, 5)))
+                law._system(xp, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, rp_, np.zeros((5, 5)))
+                law._system(xm, du, t_old, 5e-5, 5e-5, comp, 1e5, p, ws, rm_, np.zeros((5, 5)))
                 jac_fd[:, j] = (rp_ - rm_) / (2 * h)
             scale = np.abs(jac).max(axis=1, keepdims=True)
             np.testing.assert_allclose(jac / scale, jac_fd / scale, rtol=0, atol=1e-7)
@@ -505,3 +505,100 @@ def test_trapezoidal_rp_tangent_and_onset_rule():
                                0.5 * (max(s1[S_TN], 0) + max(s2[S_TN], 0)) * du2[1] / TRAP_RP.GfI, rtol=1e-9)
     d_fd = fd_tangent(lambda u: rp(u, s1, p, x1)[1], du2, 1e-11)
     assert rel_err(d, d_fd) < 1e-6
+
+
+def test_frozen_predictor_rows_and_solution():
+    """The frozen-strength predictor: its reduced Jacobian matches finite differences, and its result
+    solves rows 0, 1 and 4 of the local problem (eq. 31 and 18) with the strengths at eps_old."""
+    p = EP.as_array()
+    en, es = 2e-5, 4e-5
+    chi, c, tphi, tpsi = law.strengths(en, es, p)
+    du, t_old, comp = np.array([3e-5, 2e-6]), np.array([500.0, -200.0]), np.array([1e-9, 1e-9])
+    s, wu = law._scale(p), law._jump_weight(comp, du, p)
+    tn_tr = t_old[1] + du[1] / comp[1]
+    tt, dg = 9000.0, 2e-6
+    rows = np.array(law._frozen_rows(tt, dg, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi))
+    for k, (var, h) in enumerate(((0, 1e-3), (1, 1e-12))):
+        xp, xm = [tt, dg], [tt, dg]
+        xp[var] += h
+        xm[var] -= h
+        fd = (np.array(law._frozen_rows(*xp, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi)[:2])
+              - np.array(law._frozen_rows(*xm, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi)[:2])) / (2 * h)
+        np.testing.assert_allclose(rows[[2 + k, 4 + k]], fd, rtol=1e-6)
+    x = np.array([t_old[0] + du[0] / comp[0], tn_tr, en, es, 0.0])
+    assert law.yield_function(x[0], x[1], en, es, p) > 0.0
+    assert law._frozen_return(x, du, t_old, comp, p, 1.0)
+    r, jac = np.zeros(5), np.zeros((5, 5))
+    law._system(x, du, t_old, en, es, comp, wu, p, np.zeros(3), r, jac)
+    assert np.abs(r[[0, 1, 4]]).max() < 1e-12 and x[4] > 0.0
+    assert np.abs(r[[2, 3]]).max() > 1e-3  # the ISV rows are what the full Newton then solves
+
+
+def _reference_return(du, s_old, comp, p):
+    """Independent driver of the EP return: plain Newton with backtracking on the full 5 x 5 residual
+    (law._system) from the trial, NumPy's solve, D = -(J^-1)[0:2, 0:2] / wu by the same residual."""
+    from rockfrac.laws.cohesive_params import S_EPSN, S_EPSS, S_TN, S_TT
+
+    en, es = s_old[S_EPSN], s_old[S_EPSS]
+    t_old = s_old[[S_TT, S_TN]].copy()
+    ws, dws = np.zeros(3), np.zeros((2, 2))
+    law._work_start(t_old.copy(), du, comp, en, es, p, law.START_CROSSING, ws, dws)
+    x = np.array([t_old[0] + du[0] / comp[0], t_old[1] + du[1] / comp[1], en, es, 0.0])
+    wu = law._jump_weight(comp, du, p)
+    r, jac = np.zeros(5), np.zeros((5, 5))
+    law._system(x, du, t_old, en, es, comp, wu, p, ws, r, jac)
+    for _ in range(100):
+        if np.linalg.norm(r) < 1e-13:
+            break
+        dx = np.linalg.solve(jac, -r)
+        a = min(1.0, 0.9 * abs(x[0] / dx[0])) if x[0] * (x[0] + dx[0]) <= 0 else 1.0
+        while True:
+            rt, jt = np.zeros(5), np.zeros((5, 5))
+            law._system(x + a * dx, du, t_old, en, es, comp, wu, p, ws, rt, jt)
+            if np.linalg.norm(rt) <= (1 - 1e-4 * a) * np.linalg.norm(r) or a < 1e-12:
+                break
+            a /= 2
+        x, r, jac = x + a * dx, rt, jt
+    b = np.zeros((5, 2))
+    b[0, 0] = b[1, 1] = wu
+    if ws[0] != 0.0:
+        tpsi = law.strengths(x[2], x[3], p)[3]
+        ng = abs(law.flow_direction(x[0], x[1], x[2], x[3], p)[0])
+        b[2] = -wu / law._scale(p) * ws[0] * dws[0] * x[4] * tpsi
+        b[3] = -wu / law._scale(p) * ws[0] * dws[1] * x[4] * ng
+    return x, -np.linalg.solve(jac, b)[:2]
+
+
+@pytest.mark.parametrize("rule,rates", [("backward_euler", {}), ("trapezoidal", {}),
+                                        ("backward_euler", dict(alpha_c=1.5e3, alpha_psi=6e2))])
+def test_return_map_equals_an_independent_newton(rule, rates):
+    """The compiled return (frozen predictor, Newton on a reused workspace, the converged Jacobian reused
+    for the tangent) lands on the solution of the same residual found by a plain NumPy Newton."""
+    from rockfrac.laws.cohesive_params import S_DGAMMA, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT
+
+    p = CohesiveLaw(**{**TABLE1, **rates}, kn=1e9, kt=1e9, work_rule=rule).as_array()
+    rng = np.random.default_rng(11)
+    wk = law.workspace()
+    n_plastic = 0
+    for k in range(60):
+        s_old = np.zeros(N_STATE)
+        if k % 3:  # softened, loaded points
+            s_old[S_EPSN], s_old[S_EPSS] = rng.uniform(0, 3e-4, 2)
+            s_old[S_TT], s_old[S_TN] = rng.uniform(-3000, 3000), rng.uniform(-3000, 1000)
+            s_old[S_MODE] = float(k % 2)
+        du = np.array([rng.uniform(-4e-5, 4e-5), rng.uniform(-1e-5, 1e-5) if k % 4 else 0.0])
+        if k % 5 == 0:
+            du[0] = 0.0  # pure opening or closing
+            s_old[S_TT] = 0.0
+        s_new, d = np.empty(N_STATE), np.empty((2, 2))
+        st = law.ep_update_jump(du[0], du[1], s_old, p, s_new, d, wk)
+        assert st >= 0
+        if st != 1:
+            continue
+        n_plastic += 1
+        x, d_ref = _reference_return(du, s_old, np.array([1e-9, 1e-9]), p)
+        got = s_new[[S_TT, S_TN, S_EPSN, S_EPSS, S_DGAMMA]]
+        scale = np.array([1e4, 1e4, 1e-4, 1e-4, 1e-5])
+        np.testing.assert_allclose(got / scale, x / scale, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(d, d_ref, rtol=1e-7, atol=1e-7 * np.abs(d_ref).max())
+    assert n_plastic > 25

@@ -16,12 +16,14 @@ import numba as nb
 import numpy as np
 
 from rockfrac.laws.cohesive import (
+    CHUNK,
     START_GIVEN,
     START_NONE,
     elastic_tolerance,
     elastic_update,
     ep_update_jump,
-    return_map_from,
+    return_step,
+    workspace,
     yield_function,
 )
 from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT
@@ -65,16 +67,74 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
     djump: (n, 2) global jump increment since the committed state [m]; d_old (n, 2, 2) the
     committed tangents; fe (n, 4), ke (n, 4, 4).
     """
-    for i in nb.prange(frame.shape[0]):
-        r = frame[i]
-        du_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
-        du_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
-        if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
-            _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
-            status[i] = 1
-        else:
-            status[i] = ep_update_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i])
-        _pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
+    n = frame.shape[0]
+    for c in nb.prange((n + CHUNK - 1) // CHUNK):
+        wk = workspace()  # one scratch per chunk: a plastic point allocates nothing
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            r = frame[i]
+            du_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
+            du_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
+            if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
+                _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+                status[i] = 1
+            else:
+                status[i] = ep_update_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i], wk)
+            _pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
+
+
+@nb.njit(cache=True, inline="always")
+def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
+              status, switched, wk):
+    """Point i of :func:`rp_points`."""
+    r = frame[i]
+    w = weight[i]
+    h_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
+    h_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
+    if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
+        _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+        status[i] = 1
+    elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
+        s_new[i, :] = s_old[i, :]
+        s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t
+        s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n
+        s_new[i, S_DGAMMA] = 0.0
+        s_new[i, S_MODE] = 0.0
+        d_new[i, :, :] = 0.0
+        d_new[i, 0, 0] = aug
+        d_new[i, 1, 1] = aug
+        status[i] = 0
+    else:
+        lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
+        lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
+        comp = 1.0 / aug
+        tt = lam_t + h_t / comp  # return_step's trial and test, before a call that takes wk
+        tn = lam_n + h_n / comp
+        if yield_function(tt, tn, s_old[i, S_EPSN], s_old[i, S_EPSS], p) <= elastic_tolerance(p):
+            status[i] = elastic_update(tt, tn, comp, comp, s_old[i], s_new[i], d_new[i])
+        else:  # the work rule's flow starts at the committed traction of a committed plastic point
+            start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+            status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
+                                    s_old[i], p, s_new[i], d_new[i], wk)
+    switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
+    fi = fe[i]
+    ki = ke[i]
+    _pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
+    for a in range(2):
+        tg_a = r[0, a] * s_new[i, S_TT] + r[1, a] * s_new[i, S_TN]
+        fi[4 + a] = w * (tg_a - lam[i, a])
+        for b in range(2):
+            kab = ki[a, b]  # w R^T D R, as _pair_blocks_local wrote it
+            # dT/dlambda = D / r; dT/d[[u]] = D; d(T - lambda)/dlambda = D / r - I
+            ki[a, 4 + b] = -kab / aug
+            ki[2 + a, 4 + b] = kab / aug
+            ki[4 + a, b] = -kab
+            ki[4 + a, 2 + b] = kab
+            ki[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
+    if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
+        for a in range(2):  # least circulation of junction multipliers (CohesiveRP)
+            lam_n = r[0, a] * s_old[i, S_TT] + r[1, a] * s_old[i, S_TN]
+            fi[4 + a] -= eps[i] * w * (lam[i, a] - lam_n)
+            ki[4 + a, 4 + a] -= eps[i] * w
 
 
 @nb.njit(cache=True, parallel=True)
@@ -95,62 +155,9 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
     pinned (n,): held constrained in this iteration whatever their trial (active-set pinning, see
     CohesiveRP).
     """
-    comp = np.empty(2)
-    comp[0] = 1.0 / aug
-    comp[1] = comp[0]
-    for i in nb.prange(frame.shape[0]):
-        r = frame[i]
-        w = weight[i]
-        h_t = r[0, 0] * djump[i, 0] + r[0, 1] * djump[i, 1]
-        h_n = r[1, 0] * djump[i, 0] + r[1, 1] * djump[i, 1]
-        if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
-            _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
-            status[i] = 1
-        elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
-            s_new[i, :] = s_old[i, :]
-            s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t
-            s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n
-            s_new[i, S_DGAMMA] = 0.0
-            s_new[i, S_MODE] = 0.0
-            d_new[i, :, :] = 0.0
-            d_new[i, 0, 0] = aug
-            d_new[i, 1, 1] = aug
-            status[i] = 0
-        else:
-            lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
-            lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
-            tt = lam_t + h_t / comp[0]  # return_map's trial and test, without allocating
-            tn = lam_n + h_n / comp[1]
-            if yield_function(tt, tn, s_old[i, S_EPSN], s_old[i, S_EPSS], p) <= elastic_tolerance(p):
-                status[i] = elastic_update(tt, tn, comp[0], comp[1], s_old[i], s_new[i], d_new[i])
-            else:
-                h = np.empty(2)
-                h[0] = h_t
-                h[1] = h_n
-                s_lam = s_old[i].copy()
-                s_lam[S_TT] = lam_t
-                s_lam[S_TN] = lam_n
-                # the work rule's flow starts at the committed traction of a committed plastic point
-                start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
-                status[i] = return_map_from(h, s_lam, s_old[i, S_TT : S_TN + 1], start, comp, p, s_new[i],
-                                            d_new[i])
-        switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
-        fi = fe[i]
-        ki = ke[i]
-        _pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
-        for a in range(2):
-            tg_a = r[0, a] * s_new[i, S_TT] + r[1, a] * s_new[i, S_TN]
-            fi[4 + a] = w * (tg_a - lam[i, a])
-            for b in range(2):
-                kab = ki[a, b]  # w R^T D R, as _pair_blocks_local wrote it
-                # dT/dlambda = D / r; dT/d[[u]] = D; d(T - lambda)/dlambda = D / r - I
-                ki[a, 4 + b] = -kab / aug
-                ki[2 + a, 4 + b] = kab / aug
-                ki[4 + a, b] = -kab
-                ki[4 + a, 2 + b] = kab
-                ki[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
-        if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
-            for a in range(2):  # least circulation of junction multipliers (CohesiveRP)
-                lam_n = r[0, a] * s_old[i, S_TT] + r[1, a] * s_old[i, S_TN]
-                fi[4 + a] -= eps[i] * w * (lam[i, a] - lam_n)
-                ki[4 + a, 4 + a] -= eps[i] * w
+    n = frame.shape[0]
+    for c in nb.prange((n + CHUNK - 1) // CHUNK):
+        wk = workspace()  # one scratch per chunk: a plastic point allocates nothing
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
+                      fe, ke, status, switched, wk)

@@ -21,8 +21,10 @@ end traction. EP: ``T_s`` is where the elastic path ``T_old + a K^e du`` meets `
 (``T_old`` itself when the point was plastic), so it depends on du and enters the tangent. RP: the
 committed traction of a point that was plastic; the step in which a point first yields is
 backward Euler (its onset traction is not known locally). The residual is solved by Newton with a
-backtracking line search on a scaled norm; the consistent tangent is
-``dT/d(du) = -(J^-1)[0:2, 0:2]``.
+backtracking line search on a scaled norm, from the return with the strengths frozen at their old
+values (two unknowns, no exponential: the guess); the consistent tangent is
+``dT/d(du) = -(J^-1)[0:2, 0:2]`` with the converged Newton's Jacobian. Element kernels pass one
+:func:`workspace` per chunk of points, so a plastic point allocates nothing.
 
 Corner of a degenerate hyperbola (``a_F = c - chi tan(phi) = 0``, Table 1): ``T_t / sqrt(T_t^2 +
 a^2)`` is taken as 0 when both vanish and its derivative ``a^2 / (T_t^2 + a^2)^{3/2}`` as 0 there,
@@ -96,10 +98,10 @@ def _isv(eps_n, eps_s, p):
     w = eps_n + eps_s; the exponential softening laws of Sect. 4.2.
     """
     w = eps_n + eps_s
-    e_chi = math.exp(-p[P_A_CHI] * w)
-    e_c = math.exp(-p[P_A_C] * w)
+    e_chi = math.exp(-p[P_A_CHI] * w)  # equal rates (Table 1: chi with c, phi with psi) share one exp
+    e_c = e_chi if p[P_A_C] == p[P_A_CHI] else math.exp(-p[P_A_C] * w)
     e_phi = math.exp(-p[P_A_PHI] * eps_s)
-    e_psi = math.exp(-p[P_A_PSI] * eps_s)
+    e_psi = e_phi if p[P_A_PSI] == p[P_A_PHI] else math.exp(-p[P_A_PSI] * eps_s)
     d_chi = p[P_CHI_P] - p[P_CHI_R]
     d_c = p[P_C_P] - p[P_C_R]
     d_phi = p[P_TANPHI_P] - p[P_TANPHI_R]
@@ -282,28 +284,23 @@ def _yield_row(x, q, s, r, jac):
 
 
 @nb.njit(cache=True)
-def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, r, jac):
+def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac):
     """Scaled residual r (5,) and Jacobian jac (5, 5) of the local problem at x (see module doc).
 
     Row weights make every row a relative error: jump rows by wu = 1/L_u [1/m], ISV rows (in
     energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. ws: start-of-flow terms of the
-    work rule (_work_start). frozen: ISV rows become eps = eps_old when frozen > 0 (a float flag:
-    return with frozen strengths, the guess).
+    work rule (_work_start).
     """
+    _system_q(x, du, t_old, en_old, es_old, comp, wu, p, ws, _isv(x[2], x[3], p), r, jac)
+
+
+@nb.njit(cache=True)
+def _system_q(x, du, t_old, en_old, es_old, comp, wu, p, ws, q, r, jac):
+    """:func:`_system` with the strengths and their derivatives q = _isv(x[2], x[3]) given."""
     s = _scale(p)
-    q = _isv(x[2], x[3], p)
     gt = _jump_rows(x, du, t_old, comp, wu, q, r, jac)
-    if frozen > 0.0:
-        r[2] = x[2] - en_old
-        r[3] = x[3] - es_old
-        for k in range(5):
-            jac[2, k] = 0.0
-            jac[3, k] = 0.0
-        jac[2, 2] = 1.0
-        jac[3, 3] = 1.0
-    else:
-        _opening_row(x, en_old, p, q, ws, wu / s, r, jac)
-        _slip_row(x, es_old, p, q, gt, ws, wu / s, r, jac)
+    _opening_row(x, en_old, p, q, ws, wu / s, r, jac)
+    _slip_row(x, es_old, p, q, gt, ws, wu / s, r, jac)
     _yield_row(x, q, s, r, jac)
 
 
@@ -325,7 +322,8 @@ def _jump_weight(comp, du, p):
 def _gauss(a, b):
     """Solve a x = b in place (b (n, m) becomes x); row equilibration + partial pivoting.
 
-    Returns False if a is singular or not finite. Plain loops (array expressions compile slowly).
+    Returns False if a is singular or not finite. Plain loops (array expressions compile slowly);
+    one division per row and per pivot, the rest multiplications (divisions dominated this 5 x 5).
     """
     n = a.shape[0]
     m = b.shape[1]
@@ -335,33 +333,40 @@ def _gauss(a, b):
             sc = max(sc, abs(a[i, j]))
         if not (sc > 0.0 and sc < np.inf):
             return False
+        inv = 1.0 / sc
         for j in range(n):
-            a[i, j] /= sc
+            a[i, j] *= inv
         for j in range(m):
-            b[i, j] /= sc
+            b[i, j] *= inv
     for k in range(n):
         piv = k
+        big = abs(a[k, k])
         for i in range(k + 1, n):
-            if abs(a[i, k]) > abs(a[piv, k]):
+            if abs(a[i, k]) > big:
                 piv = i
-        if not abs(a[piv, k]) > 1.0e-300:
+                big = abs(a[i, k])
+        if not big > 1.0e-300:
             return False
-        for j in range(n):
-            a[k, j], a[piv, j] = a[piv, j], a[k, j]
-        for j in range(m):
-            b[k, j], b[piv, j] = b[piv, j], b[k, j]
-        for i in range(k + 1, n):
-            f = a[i, k] / a[k, k]
-            for j in range(k, n):
-                a[i, j] -= f * a[k, j]
+        if piv != k:
+            for j in range(n):
+                a[k, j], a[piv, j] = a[piv, j], a[k, j]
             for j in range(m):
-                b[i, j] -= f * b[k, j]
+                b[k, j], b[piv, j] = b[piv, j], b[k, j]
+        inv = 1.0 / a[k, k]
+        a[k, k] = inv  # kept for the back substitution
+        for i in range(k + 1, n):
+            f = a[i, k] * inv
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= f * a[k, j]
+                for j in range(m):
+                    b[i, j] -= f * b[k, j]
     for k in range(n - 1, -1, -1):
         for j in range(m):
             acc = b[k, j]
             for i in range(k + 1, n):
                 acc -= a[k, i] * b[i, j]
-            b[k, j] = acc / a[k, k]
+            b[k, j] = acc * a[k, k]
     return True
 
 
@@ -383,26 +388,39 @@ def _corner_limit(x0, dx0, sgn):
 
 
 @nb.njit(cache=True)
-def _newton(x, du, t_old, en_old, es_old, comp, p, ws, frozen, sgn):
+def workspace():
+    """Scratch arrays of one local solve, reused point after point (a kernel makes one per chunk).
+
+    (r, jac, rt, jt, xt, dx, b, x, ws, dws, du, comp, t_old, t_s): residual and Jacobian of the
+    iterate and of the line-search trial, trial point, Newton step (5, 1), tangent right-hand side
+    (5, 2), the unknowns, the work rule's start terms, and the point's du, C, T_old and T_s.
+    """
+    return (np.empty(5), np.empty((5, 5)), np.empty(5), np.empty((5, 5)), np.empty(5), np.empty((5, 1)),
+            np.empty((5, 2)), np.empty(5), np.empty(3), np.empty((2, 2)), np.empty(2), np.empty(2),
+            np.empty(2), np.empty(2))
+
+
+CONVERGED = 1  # Newton converged; the workspace's jac is the Jacobian at the solution
+CONVERGED_STALLED = 2  # accepted at a stalled line search below TOL_STALL; jac is not kept
+
+
+@nb.njit(cache=True)
+def _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk):
     """Local Newton with backtracking on the scaled residual; x (5,) updated in place.
 
     sgn: known sign of T_t at the solution (0: pure opening, T_t held at 0 exactly).
-    Returns 1 converged, -1 not converged in MAX_ITER, -3 singular / NaN.
+    Returns CONVERGED (wk's jac = J(x), unfactored), CONVERGED_STALLED, -1 not converged in
+    MAX_ITER, -3 singular / NaN.
     """
-    r = np.empty(5)
-    jac = np.empty((5, 5))
-    rt = np.empty(5)
-    jt = np.empty((5, 5))
-    xt = np.empty(5)
-    dx = np.empty((5, 1))
+    r, jac, rt, jt, xt, dx = wk[0], wk[1], wk[2], wk[3], wk[4], wk[5]
     wu = _jump_weight(comp, du, p)
-    _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, r, jac)
+    _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac)
     nrm = _norm(r)
     for _ in range(MAX_ITER):
         if not nrm < np.inf:
             return ST_SINGULAR
         if nrm <= TOL_RES:
-            return 1
+            return CONVERGED
         for k in range(5):
             dx[k, 0] = -r[k]
         if not _gauss(jac, dx):
@@ -414,34 +432,105 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, ws, frozen, sgn):
         for _ls in range(40):
             for k in range(5):
                 xt[k] = x[k] + alpha * dx[k, 0]
-            _system(xt, du, t_old, en_old, es_old, comp, wu, p, ws, frozen, rt, jt)
+            _system(xt, du, t_old, en_old, es_old, comp, wu, p, ws, rt, jt)
             nt = _norm(rt)
             if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
                 accepted = True
                 break
             alpha *= 0.5
         if not accepted:
-            return 1 if nrm <= TOL_STALL else ST_NO_CONVERGENCE
+            return CONVERGED_STALLED if nrm <= TOL_STALL else ST_NO_CONVERGENCE
         for k in range(5):
             x[k] = xt[k]
             r[k] = rt[k]
             for j in range(5):
                 jac[k, j] = jt[k, j]
         nrm = nt
-    return 1 if nrm <= TOL_RES else ST_NO_CONVERGENCE
+    return CONVERGED if nrm <= TOL_RES else ST_NO_CONVERGENCE
 
 
 @nb.njit(cache=True)
-def _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D):
+def _frozen_rows(tt, dg, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi):
+    """Rows 0 and 4 of :func:`_system` with the strengths frozen and T_n eliminated by row 1
+    (T_n = T_n^tr - dgamma tan psi / kn): (r0, r4, dr0/dT_t, dr0/ddgamma, dr4/dT_t, dr4/ddgamma)."""
+    a_g = c - chi * tpsi
+    r_g = math.sqrt(tt * tt + a_g * a_g)
+    u = _ratio(tt, r_g)
+    v = _ratio(a_g, r_g)
+    a_f = c - chi * tphi
+    r_f = math.sqrt(tt * tt + a_f * a_f)
+    tn = tn_tr - dg * tpsi / comp[1]
+    r0 = wu * (du[0] - dg * u - comp[0] * (tt - t_old[0]))
+    r4 = (r_f - c + tn * tphi) / s
+    return (r0, r4, -wu * (comp[0] + dg * _ratio(v * v, r_g)), -wu * u, _ratio(tt, r_f) / s,
+            -tphi * tpsi / (comp[1] * s))
+
+
+@nb.njit(cache=True)
+def _frozen_return(x, du, t_old, comp, p, sgn):
+    """Guess of the EP return (eq. 31) with the strengths frozen at x's ISVs, from x = the trial.
+
+    The frozen problem is rows 0, 1, 4 of the local problem with eps = eps_old; row 1 is linear in
+    (T_n, dgamma), so Newton with backtracking runs on (T_t, dgamma) alone (no exponential, a 2 x 2
+    solve). Updates x's T_t, T_n, dgamma; returns False if it does not converge (x then unusable).
+    """
+    chi, c, tphi, tpsi = strengths(x[2], x[3], p)
+    s = _scale(p)
+    wu = _jump_weight(comp, du, p)
+    tn_tr = t_old[1] + du[1] / comp[1]
+    tt, dg = x[0], x[4]
+    r0, r4, j00, j04, j40, j44 = _frozen_rows(tt, dg, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi)
+    nrm = math.sqrt(r0 * r0 + r4 * r4)
+    ok = False
+    for _ in range(MAX_ITER):
+        if not nrm < np.inf:
+            return False
+        if nrm <= TOL_RES:
+            ok = True
+            break
+        det = j00 * j44 - j04 * j40
+        if not abs(det) > 0.0:
+            return False
+        d_tt = (j04 * r4 - j44 * r0) / det
+        d_dg = (j40 * r0 - j00 * r4) / det
+        if sgn == 0.0:
+            d_tt = 0.0
+        alpha = _corner_limit(tt, d_tt, sgn)
+        accepted = False
+        for _ls in range(40):
+            tt_t, dg_t = tt + alpha * d_tt, dg + alpha * d_dg
+            rows = _frozen_rows(tt_t, dg_t, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi)
+            nt = math.sqrt(rows[0] * rows[0] + rows[1] * rows[1])
+            if nt <= (1.0 - 1.0e-4 * alpha) * nrm:
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            ok = nrm <= TOL_STALL
+            break
+        tt, dg = tt_t, dg_t
+        r0, r4, j00, j04, j40, j44 = rows
+        nrm = nt
+    if not (ok or nrm <= TOL_RES):
+        return False
+    x[0], x[1], x[4] = tt, tn_tr - dg * tpsi / comp[1], dg
+    return True
+
+
+@nb.njit(cache=True)
+def _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D, wk, have_jac):
     """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular.
 
     dws (2, 2): d(<T_s,n>, m_s)/d(du) of the work rule's start terms (zero unless T_s moves with du).
+    have_jac: wk's jac already holds J(x) (a converged Newton's), else it is evaluated here.
     """
-    r = np.empty(5)
-    jac = np.empty((5, 5))
+    r, jac, b = wk[0], wk[1], wk[6]
     wu = _jump_weight(comp, du, p)
-    _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, 0.0, r, jac)
-    b = np.zeros((5, 2))
+    if not have_jac:
+        _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac)
+    for k in range(5):
+        b[k, 0] = 0.0
+        b[k, 1] = 0.0
     b[0, 0] = wu  # d r / d du of the weighted jump rows
     b[1, 1] = wu
     if ws[0] != 0.0:  # the ISV rows through T_s(du)
@@ -548,12 +637,6 @@ def elastic_tolerance(p):
 
 
 @nb.njit(cache=True)
-def _ep_elastic(t_tr, s_old, comp, s_new, D):
-    """Elastic step: T = T^tr, D = K^e = diag(1/comp) [Pa/m], ISVs unchanged."""
-    return elastic_update(t_tr[0], t_tr[1], comp[0], comp[1], s_old, s_new, D)
-
-
-@nb.njit(cache=True)
 def elastic_update(tt, tn, ct, cn, s_old, s_new, D):
     """Elastic step on scalars: T = (tt, tn) [Pa], D = diag(1/ct, 1/cn) [Pa/m], ISVs unchanged."""
     for k in range(N_STATE):
@@ -578,10 +661,8 @@ def return_map(du, s_old, comp, p, s_new, D):
     penalty compliances; flow starts where the elastic path leaves the old surface.
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
     """
-    t_s = np.empty(2)
-    t_s[0] = s_old[S_TT]
-    t_s[1] = s_old[S_TN]
-    return return_map_from(du, s_old, t_s, START_CROSSING, comp, p, s_new, D)
+    return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], START_CROSSING,
+                       comp[0], comp[1], s_old, p, s_new, D, workspace())
 
 
 @nb.njit(cache=True)
@@ -591,29 +672,39 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
     The RP CSE passes its augmentation (K^e = r I), T_old = lambda in s_old, and the committed
     traction with START_GIVEN (committed plastic) or START_NONE (see the module doc).
     """
-    t_old = np.empty(2)
-    t_old[0] = s_old[S_TT]
-    t_old[1] = s_old[S_TN]
+    return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], t_s[0], t_s[1], start, comp[0], comp[1],
+                       s_old, p, s_new, D, workspace())
+
+
+@nb.njit(cache=True)
+def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
+    """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
+
+    (du_t, du_n) [m]: local jump increment; (t_old_t, t_old_n) [Pa]: the traction of the trial
+    T^tr = T_old + K^e du, K^e = diag(1/ct, 1/cn); (t_s_t, t_s_n), start: the work rule's
+    start-of-flow traction. s_old supplies the ISVs and plastic jumps (its traction is not read).
+    """
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
-    t_tr = np.empty(2)  # trial traction T^tr = T_n + K^e du (eq. 31)
-    t_tr[0] = t_old[0] + du[0] / comp[0]
-    t_tr[1] = t_old[1] + du[1] / comp[1]
-    if yield_function(t_tr[0], t_tr[1], en_old, es_old, p) <= elastic_tolerance(p):
-        return _ep_elastic(t_tr, s_old, comp, s_new, D)
-    ws = np.empty(3)
-    dws = np.empty((2, 2))
+    tt = t_old_t + du_t / ct  # trial traction T^tr = T_n + K^e du (eq. 31)
+    tn = t_old_n + du_n / cn
+    if yield_function(tt, tn, en_old, es_old, p) <= elastic_tolerance(p):
+        return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
+    x, ws, dws, du, comp, t_old, t_s = wk[7], wk[8], wk[9], wk[10], wk[11], wk[12], wk[13]
+    du[0], du[1] = du_t, du_n
+    comp[0], comp[1] = ct, cn
+    t_old[0], t_old[1] = t_old_t, t_old_n
+    t_s[0], t_s[1] = t_s_t, t_s_n
     _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws)
-    x = np.empty(5)
-    x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
-    sgn = _sign(t_tr[0])  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
-    if _newton(x, du, t_old, en_old, es_old, comp, p, ws, 1.0, sgn) < 0:
-        x[0], x[1], x[2], x[3], x[4] = t_tr[0], t_tr[1], en_old, es_old, 0.0
-    st = _newton(x, du, t_old, en_old, es_old, comp, p, ws, 0.0, sgn)
+    x[0], x[1], x[2], x[3], x[4] = tt, tn, en_old, es_old, 0.0
+    sgn = _sign(tt)  # T_t (1 + kt dgamma / r_G) = T_t^tr: the sign is that of the trial
+    if not _frozen_return(x, du, t_old, comp, p, sgn):
+        x[0], x[1], x[2], x[3], x[4] = tt, tn, en_old, es_old, 0.0
+    st = _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk)
     if st < 0:
         return st
     if x[4] < 0.0:
         return ST_UNLOAD
-    if not _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D):
+    if not _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D, wk, st == CONVERGED):
         return ST_SINGULAR
     gt, gn = flow_direction(x[0], x[1], x[2], x[3], p)
     _commit(x, x[4] * gt, x[4] * gn, s_old, s_new)
@@ -623,31 +714,36 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
 @nb.njit(cache=True)
 def ep_update(du, s_old, p, s_new, D):
     """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m]."""
-    return ep_update_jump(du[0], du[1], s_old, p, s_new, D)
+    return ep_update_jump(du[0], du[1], s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True)
-def ep_update_jump(du_t, du_n, s_old, p, s_new, D):
-    """:func:`ep_update` for the increment (du_t, du_n) [m]; an elastic point allocates nothing."""
+@nb.njit(cache=True, inline="always")
+def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
+    """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`.
+
+    Inlined: the elastic test and update run in the caller's loop without a call that takes wk
+    (passing the workspace tuple costs its 14 arrays' reference counts, ~0.1 us, measured).
+    """
     ct, cn = p[P_CT], p[P_CN]
-    tt = s_old[S_TT] + du_t / ct  # the trial of return_map, checked here without allocating
+    tt = s_old[S_TT] + du_t / ct  # return_step's trial and test
     tn = s_old[S_TN] + du_n / cn
     if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
         return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
-    du = np.empty(2)
-    du[0] = du_t
-    du[1] = du_n
-    comp = np.empty(2)
-    comp[0] = ct
-    comp[1] = cn
-    return return_map(du, s_old, comp, p, s_new, D)
+    return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], START_CROSSING,
+                       ct, cn, s_old, p, s_new, D, wk)
+
+
+CHUNK = 256  # points per prange item: one workspace each, small enough to balance plastic clusters
 
 
 @nb.njit(cache=True, parallel=True)
 def ep_update_points(du, s_old, p, s_new, D, status):
     """EP return map at n points: du (n, 2) [m], s_old/s_new (n, N_STATE), D (n, 2, 2), status (n,)."""
-    for i in nb.prange(du.shape[0]):
-        status[i] = ep_update(du[i], s_old[i], p, s_new[i], D[i])
+    n = du.shape[0]
+    for c in nb.prange((n + CHUNK - 1) // CHUNK):
+        wk = workspace()
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            status[i] = ep_update_jump(du[i, 0], du[i, 1], s_old[i], p, s_new[i], D[i], wk)
 
 
 # --------------------------------------------------------------------------------------------
@@ -689,29 +785,30 @@ def _rp_direct_guess(du, s_old, p, x):
 
 
 @nb.njit(cache=True)
-def _rp_work_start(du, s_old, p, ws, dws):
-    """Work-rule start terms of eq. (34): the committed traction of a plastic point, else none."""
-    t_s = np.empty(2)
+def _rp_work_start(du, s_old, p, wk):
+    """Work-rule start terms of eq. (34) into wk's ws, dws: the committed traction of a plastic point,
+    else none. Sets wk's T_old and C to zero (the rigid form)."""
+    ws, dws, comp, t_old, t_s = wk[8], wk[9], wk[11], wk[12], wk[13]
     t_s[0] = s_old[S_TT]
     t_s[1] = s_old[S_TN]
+    for k in range(2):
+        comp[k] = 0.0
+        t_old[k] = 0.0
     start = START_GIVEN if s_old[S_MODE] == MODE_PLASTIC else START_NONE
-    _work_start(t_s, du, np.zeros(2), s_old[S_EPSN], s_old[S_EPSS], p, start, ws, dws)  # no K^e used
+    _work_start(t_s, du, comp, s_old[S_EPSN], s_old[S_EPSS], p, start, ws, dws)  # no K^e used
 
 
 @nb.njit(cache=True)
-def _rp_solve(du, s_old, p, x, sgn):
+def _rp_solve(du, s_old, p, x, sgn, wk):
     """Newton on eq. (34) from x with T_t put on the side sgn; returns the Newton status."""
-    zero = np.zeros(2)
-    ws = np.empty(3)
-    dws = np.empty((2, 2))
-    _rp_work_start(du, s_old, p, ws, dws)
+    _rp_work_start(du, s_old, p, wk)
     if sgn == 0.0:
         x[0] = 0.0
     elif x[0] * sgn <= 0.0:
         x[0] = sgn * max(abs(x[0]), 1.0e-6 * _scale(p))
     if not x[4] > 0.0:
         x[4] = math.sqrt(du[0] * du[0] + du[1] * du[1])
-    return _newton(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, ws, 0.0, sgn)
+    return _newton(x, du, wk[12], s_old[S_EPSN], s_old[S_EPSS], wk[11], p, wk[8], sgn, wk)
 
 
 @nb.njit(cache=True)
@@ -727,20 +824,22 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
     if not _rp_admissible(du, p):
         return ST_UNLOAD
     sgn = _sign(du[0])  # du_t = dgamma g_t with dgamma > 0
-    x = np.empty(5)
+    wk = workspace()
+    x = wk[7]
     for k in range(5):
         x[k] = x_guess[k]
-    st = _rp_solve(du, s_old, p, x, sgn)
+    st = _rp_solve(du, s_old, p, x, sgn, wk)
     if st < 0 or not x[4] > 0.0:
         if not _rp_direct_guess(du, s_old, p, x):
             for k in range(5):
                 x[k] = x_guess[k]
-        st = _rp_solve(du, s_old, p, x, sgn)
+        st = _rp_solve(du, s_old, p, x, sgn, wk)
     if st < 0:
         return st
     if not x[4] > 0.0:
         return ST_UNLOAD
-    if rp_tangent_at(x, du, s_old, p, D) < 0:
+    if not _tangent(x, du, wk[12], s_old[S_EPSN], s_old[S_EPSS], wk[11], p, wk[8], wk[9], D, wk,
+                    st == CONVERGED):
         return ST_SINGULAR
     _commit(x, du[0], du[1], s_old, s_new)
     return ST_PLASTIC
@@ -749,10 +848,8 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
 @nb.njit(cache=True)
 def rp_tangent_at(x, du, s_old, p, D):
     """D = dT/d(du) [Pa/m] of the RP local problem (eq. 34) evaluated at x (5,); 0 ok, -3 singular."""
-    zero = np.zeros(2)
-    ws = np.empty(3)
-    dws = np.empty((2, 2))
-    _rp_work_start(du, s_old, p, ws, dws)
-    if _tangent(x, du, zero, s_old[S_EPSN], s_old[S_EPSS], zero, p, ws, dws, D):
+    wk = workspace()
+    _rp_work_start(du, s_old, p, wk)
+    if _tangent(x, du, wk[12], s_old[S_EPSN], s_old[S_EPSS], wk[11], p, wk[8], wk[9], D, wk, False):
         return 0
     return ST_SINGULAR

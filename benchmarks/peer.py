@@ -11,8 +11,8 @@ problem and its closed forms are in peer_problem. Prints the table; the full run
 Options: ``--sizes 22 70 158 224`` (N, even), ``--quick`` (N = 22 only, print only),
 ``--profile N`` (cProfile rockfrac's default run at that N, 70 unless given; the top functions
 go into the JSON),
-``--refine K`` (K > 1: one more rockfrac run per size, backward Euler, K times as many steps;
-``--refine-up-to N`` limits it to the sizes up to N).
+``--refine K`` (K > 1: one more rockfrac run per size with K times as many steps, by the work rule
+``--refine-rule``, trapezoidal unless given; ``--refine-up-to N`` limits it to the sizes up to N).
 """
 
 from __future__ import annotations
@@ -170,7 +170,9 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--profile", type=int, default=70, help="cProfile rockfrac at this N")
     ap.add_argument("--refine", type=int, default=1,
-                    help="K > 1: an extra backward-Euler rockfrac run with K times the steps")
+                    help="K > 1: an extra rockfrac run with K times the steps")
+    ap.add_argument("--refine-rule", default="trapezoidal", choices=["trapezoidal", "backward_euler"],
+                    help="work rule of the refined run")
     ap.add_argument("--refine-up-to", type=int, default=224, help="largest N of the refined run")
     args = ap.parse_args()
     sizes = [22] if args.quick else args.sizes
@@ -195,9 +197,10 @@ def main() -> None:
             if args.refine > 1 and n <= args.refine_up_to:
                 res["rockfrac_refined"] = run_code(ROCKFRAC_PY, "peer_rockfrac.py", mesh, n,
                                                    ["--refine", str(args.refine), "--work-rule",
-                                                    "backward_euler"])
+                                                    args.refine_rule])
                 if "failed" not in res["rockfrac_refined"]:
-                    res["rockfrac_refined"]["code"] = f"rockfrac, backward Euler, {args.refine}x steps"
+                    rule = args.refine_rule.replace("_", " ")
+                    res["rockfrac_refined"]["code"] = f"rockfrac, {rule}, {args.refine}x steps"
             for code in CODES:
                 if code in res and "failed" not in res[code]:
                     res[code]["accuracy"] = accuracy(res[code], "akantu" if code == "akantu" else "rockfrac")

@@ -202,3 +202,22 @@ def test_krylov_amg_gives_the_same_history_on_a_plastic_block(tmp_path):
     assert out["superlu"]["bulk_plastic"][-1] > 0.5  # a plastic, non-symmetric tangent
     assert len(out["gmres-amg"]["step"]) == len(out["superlu"]["step"])
     np.testing.assert_allclose(out["gmres-amg"]["F_axial"], out["superlu"]["F_axial"], rtol=1e-8)
+
+
+def test_pardiso_finds_mkl_in_the_environment_and_keeps_a_users_path(monkeypatch, tmp_path):
+    """The MKL runtime is taken from the environment's own library folder (no search through the whole
+    environment per solver); a path the user set is left alone."""
+    pytest.importorskip("pypardiso")
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    linear._find_mkl_runtime()
+    path = linear.os.environ["PYPARDISO_MKL_RT"]
+    assert "mkl_rt" in linear.os.path.basename(path) and linear.os.path.isfile(path)
+    solver = linear.Pardiso()
+    a = sp.diags([np.full(9, -1.0), np.full(10, 4.0), np.full(9, -1.0)], [-1, 0, 1], format="csr")
+    x = solver.factorize(a).solve(np.ones(10))
+    assert np.abs(a @ x - 1.0).max() < 1e-13
+    assert solver._solver.libmkl._name == path
+    mine = str(tmp_path / "libmkl_rt.so.custom")
+    monkeypatch.setenv("PYPARDISO_MKL_RT", mine)
+    linear._find_mkl_runtime()
+    assert linear.os.environ["PYPARDISO_MKL_RT"] == mine

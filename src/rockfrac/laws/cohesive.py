@@ -291,13 +291,8 @@ def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac):
     energy form) by wu/s, the yield row by 1/s, s = c_p + chi_p [Pa]. ws: start-of-flow terms of the
     work rule (_work_start).
     """
-    _system_q(x, du, t_old, en_old, es_old, comp, wu, p, ws, _isv(x[2], x[3], p), r, jac)
-
-
-@nb.njit(cache=True)
-def _system_q(x, du, t_old, en_old, es_old, comp, wu, p, ws, q, r, jac):
-    """:func:`_system` with the strengths and their derivatives q = _isv(x[2], x[3]) given."""
     s = _scale(p)
+    q = _isv(x[2], x[3], p)
     gt = _jump_rows(x, du, t_old, comp, wu, q, r, jac)
     _opening_row(x, en_old, p, q, ws, wu / s, r, jac)
     _slip_row(x, es_old, p, q, gt, ws, wu / s, r, jac)

@@ -19,14 +19,11 @@ from rockfrac.laws.cohesive import (
     CHUNK,
     START_GIVEN,
     START_NONE,
-    elastic_tolerance,
-    elastic_update,
     ep_update_jump,
     return_step,
     workspace,
-    yield_function,
 )
-from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT
+from rockfrac.laws.cohesive_params import MODE_PLASTIC, S_DGAMMA, S_MODE, S_TN, S_TT
 
 
 @nb.njit(cache=True, inline="always")
@@ -107,14 +104,11 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
         lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
         comp = 1.0 / aug
-        tt = lam_t + h_t / comp  # return_step's trial and test, before a call that takes wk
-        tn = lam_n + h_n / comp
-        if yield_function(tt, tn, s_old[i, S_EPSN], s_old[i, S_EPSS], p) <= elastic_tolerance(p):
-            status[i] = elastic_update(tt, tn, comp, comp, s_old[i], s_new[i], d_new[i])
-        else:  # the work rule's flow starts at the committed traction of a committed plastic point
-            start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
-            status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
-                                    s_old[i], p, s_new[i], d_new[i], wk)
+        # trial lambda + r h: elastic, or the return; the work rule's flow starts at the committed
+        # traction of a committed plastic point
+        start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+        status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
+                                s_old[i], p, s_new[i], d_new[i], wk)
     switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
     fi = fe[i]
     ki = ke[i]

@@ -671,19 +671,29 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
                        s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
 
     (du_t, du_n) [m]: local jump increment; (t_old_t, t_old_n) [Pa]: the traction of the trial
     T^tr = T_old + K^e du, K^e = diag(1/ct, 1/cn); (t_s_t, t_s_n), start: the work rule's
     start-of-flow traction. s_old supplies the ISVs and plastic jumps (its traction is not read).
+    Inlined: the elastic test and update run in the caller's loop, and only a yielding point makes
+    a call that takes wk (passing the workspace tuple costs its 14 arrays' reference counts, ~0.1 us,
+    measured).
     """
-    en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
     tt = t_old_t + du_t / ct  # trial traction T^tr = T_n + K^e du (eq. 31)
     tn = t_old_n + du_n / cn
-    if yield_function(tt, tn, en_old, es_old, p) <= elastic_tolerance(p):
+    if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
         return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
+    return _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D,
+                         wk)
+
+
+@nb.njit(cache=True)
+def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
+    """The return of :func:`return_step` from the trial (tt, tn) [Pa], which is outside the surface."""
+    en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
     x, ws, dws, du, comp, t_old, t_s = wk[7], wk[8], wk[9], wk[10], wk[11], wk[12], wk[13]
     du[0], du[1] = du_t, du_n
     comp[0], comp[1] = ct, cn
@@ -714,18 +724,9 @@ def ep_update(du, s_old, p, s_new, D):
 
 @nb.njit(cache=True, inline="always")
 def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
-    """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`.
-
-    Inlined: the elastic test and update run in the caller's loop without a call that takes wk
-    (passing the workspace tuple costs its 14 arrays' reference counts, ~0.1 us, measured).
-    """
-    ct, cn = p[P_CT], p[P_CN]
-    tt = s_old[S_TT] + du_t / ct  # return_step's trial and test
-    tn = s_old[S_TN] + du_n / cn
-    if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
-        return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
+    """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`."""
     return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], START_CROSSING,
-                       ct, cn, s_old, p, s_new, D, wk)
+                       p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
 
 
 CHUNK = 256  # points per prange item: one workspace each, small enough to balance plastic clusters

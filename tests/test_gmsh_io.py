@@ -205,7 +205,7 @@ def test_missing_file(tmp_path):
 def test_not_a_mesh(tmp_path):
     path = tmp_path / "junk.msh"
     path.write_text("hello\n")
-    with pytest.raises(CaseError, match=r"junk\.msh: not a mesh Gmsh can read"):
+    with pytest.raises(CaseError, match=r"junk\.msh: not a Gmsh mesh file"):
         read_mesh(path)
 
 

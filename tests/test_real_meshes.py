@@ -57,7 +57,7 @@ def test_ep_on_every_edge_is_softer_by_its_penalties(tmp_path):
      "regions: region 'grains', 'matrix' not in the mesh; its regions: bulk"),
     ({"cohesive": dict(table1.CSE_LAW, form="rp", where="curves", curves=["fault"])},
      "curves: curve group 'fault' not in the mesh"),
-    ({"loading": dict(BASE["loading"], axial="lid")}, "[loading] support, pin, axial: node group 'lid' not in the mesh"),
+    ({"loading": dict(BASE["loading"], axial="lid")}, "[loading] axial: node group 'lid' not in the mesh"),
     ({"materials": [{"region": "rock", "E": 1e7, "nu": 0.2}]}, "give either [bulk] (one material everywhere) or [[materials]]"),
     ({"mesh": {"kind": "gmsh"}}, "kind = 'gmsh' needs file"),
     ({"mesh": {"kind": "block", "crack_angle": 0.3}}, "crack_angle do not apply to kind = 'block'"),

@@ -15,41 +15,42 @@ import math
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 from rich.console import Console
 from rich.table import Table
 
-from rockfrac.case.schema import CaseError, load_validated
+from rockfrac.case.schema import load_validated
+from rockfrac.case.types import MAX_STRESS, Coefficient, Hardening, Modulus, Strength, Stress
+from rockfrac.case.types import Section as _Section
+from rockfrac.errors import CaseError
 
 STRESS_KEYS = ("sxx", "syy", "szz", "sxy", "syz", "sxz")
 ONSET_TOL = 1.0e-8  # |min det A / det A^e| up to this is reported as the onset (round-off)
 
 
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
 class MaterialSection(_Section):
     """Drucker-Prager parameters (see rockfrac.laws.drucker_prager_params)."""
 
-    E: float = Field(gt=0, description="Young's modulus [Pa]")
+    E: Modulus = Field(description="Young's modulus [Pa]")
     nu: float = Field(gt=-1.0, lt=0.5, description="Poisson's ratio")
-    beta: float = Field(ge=0, description="friction coefficient of F [-]")
-    b: float = Field(ge=0, description="dilatancy coefficient of G [-]")
-    kappa0: float = Field(ge=0, description="initial strength kappa0 [Pa]")
-    H: float = Field(0.0, description="hardening modulus [Pa] (kappa = kappa0 + H gamma; H < 0 softens)")
+    beta: Coefficient = Field(description="friction coefficient of F [-]")
+    b: Coefficient = Field(description="dilatancy coefficient of G [-]")
+    kappa0: Strength = Field(description="initial strength kappa0 [Pa]")
+    H: Hardening = Field(0.0, description="hardening modulus [Pa] (kappa = kappa0 + H gamma; H < 0 softens)")
 
 
 class StressSection(_Section):
     """A stress state [Pa], tension positive, and the accumulated plastic multiplier."""
 
-    sxx: float
-    syy: float
-    szz: float
-    sxy: float = 0.0
-    syz: float = 0.0
-    sxz: float = 0.0
-    gamma: float = Field(0.0, ge=0, description="accumulated plastic multiplier (sets kappa)")
+    sxx: Stress
+    syy: Stress
+    szz: Stress
+    sxy: Stress = 0.0
+    syz: Stress = 0.0
+    sxz: Stress = 0.0
+    gamma: float = Field(0.0, ge=0, le=1e3, description="accumulated plastic multiplier (sets kappa)")
 
 
 class MaterialFile(_Section):
@@ -61,7 +62,7 @@ class MaterialFile(_Section):
 
 def load_material(path: str | Path) -> MaterialFile:
     """Read and validate a material file; CaseError names the file, the key and what is allowed."""
-    return load_validated(path, MaterialFile)
+    return load_validated(path, MaterialFile, "a material file")
 
 
 def parse_stress(text: str) -> np.ndarray:
@@ -71,9 +72,9 @@ def parse_stress(text: str) -> np.ndarray:
         vals = [float(t) for t in parts]
     except ValueError:
         vals = []
-    if len(vals) not in (4, 6) or not all(math.isfinite(v) for v in vals):
-        raise CaseError(f"--stress: expected 4 or 6 comma-separated numbers sxx,syy,szz,sxy[,syz,sxz] "
-                        f"in Pa (got {text!r})")
+    if len(vals) not in (4, 6) or not all(math.isfinite(v) and abs(v) <= MAX_STRESS for v in vals):
+        raise CaseError(f"--stress: expected 4 or 6 comma-separated numbers sxx,syy,szz,sxy[,syz,sxz] in Pa, "
+                        f"finite and at most {MAX_STRESS:g} in magnitude (got {text!r})")
     return np.array(vals + [0.0] * (6 - len(vals)))
 
 

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 
-from rockfrac.case.schema import CaseError
+from rockfrac.errors import CaseError, RunStopped
 
 console = Console(stderr=True, soft_wrap=True)
 
@@ -18,13 +20,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from rockfrac.case.schema import load_case
     from rockfrac.run import run_case
 
-    from rockfrac.case.build import build
-    from rockfrac.run import case_warnings
-
+    if args.resume and args.overwrite:
+        raise CaseError("--resume and --overwrite contradict each other: resume continues the run in --out, "
+                        "overwrite deletes it")
     case = load_case(args.case)
-    console.print(f"[bold]rockfrac run[/] {args.case} -> {args.out}")
-    for w in case_warnings(build(case, str(args.case))):
-        console.print(f"[yellow]warning:[/] {w}", highlight=False)
 
     def progress(row: dict) -> None:
         if not args.quiet:
@@ -34,43 +33,45 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 highlight=False,
             )
 
-    summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume)
+    summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume,
+                       overwrite=args.overwrite,
+                       on_start=lambda: console.print(f"[bold]rockfrac run[/] {escape(str(args.case))} -> "
+                                                      f"{escape(str(args.out))}"),
+                       warn=lambda w: console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False))
+    if summary.stop_signal is not None:
+        console.print(f"[yellow]stopped by {summary.stop_signal}[/] after {summary.result.steps} steps; every "
+                      f"converged step is in {escape(str(summary.out))}", highlight=False)
+        return summary.exit_code
     style = "green" if summary.result.completed else "red"
-    console.print(f"[{style}]{summary.result.message}[/] — {summary.result.steps} steps, "
+    console.print(f"[{style}]{escape(summary.result.message)}[/] — {summary.result.steps} steps, "
                   f"{summary.newton_iterations} Newton iterations, {summary.wall_time:.2f} s; "
-                  f"outputs in {summary.out}")
+                  f"outputs in {escape(str(summary.out))}")
     return 0 if summary.result.completed else 1
 
 
 def _read_path(path: Path) -> np.ndarray:
-    from rockfrac.output.csvout import read_csv
+    """The jump path of ``rockfrac drive``: (n, 2) local jumps (t, n) [m]."""
+    from rockfrac.case.types import MAX_DISPLACEMENT
+    from rockfrac.files import read_table
 
-    if not path.exists():
-        raise CaseError(f"{path}: no such file")
-    cols = read_csv(path)
-    missing = [c for c in ("jump_t", "jump_n") if c not in cols]
-    if missing:
-        raise CaseError(f"{path}: missing column(s) {', '.join(missing)}; a path file has columns jump_t, jump_n [m]")
-    jumps = np.column_stack([cols["jump_t"], cols["jump_n"]])
-    if jumps.shape[0] == 0 or not np.all(np.isfinite(jumps)):
-        raise CaseError(f"{path}: jump_t, jump_n must be numbers on every row (one row per path point)")
-    return jumps
+    cols = read_table(path, ("jump_t", "jump_n"), "a jump path [m]", max_abs=MAX_DISPLACEMENT)
+    return np.column_stack([cols["jump_t"], cols["jump_n"]])
 
 
 def _cmd_drive(args: argparse.Namespace) -> int:
     from rockfrac.case.build import law_of_section
     from rockfrac.case.schema import load_law
+    from rockfrac.files import prepare_output
     from rockfrac.laws.drive import drive_path
     from rockfrac.output.csvout import CsvWriter
 
     law_file = load_law(args.law)
     jumps = _read_path(Path(args.path))
+    out = prepare_output(args.out, ("drive.csv",), overwrite=True)  # a material-point run: replaced
     try:
         rows = drive_path(law_of_section(law_file.law), jumps)
     except RuntimeError as err:
         raise CaseError(f"{args.path}: {err}") from None
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     cols = ["step", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p",
             "chi", "c", "tan_phi", "tan_psi"]
     w = CsvWriter(out / "drive.csv", cols)
@@ -97,7 +98,7 @@ def _cmd_paper(args: argparse.Namespace) -> int:
 
         results = run_paper(args.out, args.steps, progress)
     for r in results:
-        console.print(f"{r.name}: {'completed' if r.completed else r.message}, {r.iterations} iterations, "
+        console.print(f"{r.name}: {'completed' if r.completed else escape(r.message)}, {r.iterations} iterations, "
                       f"{r.wall:.2f} s", highlight=False)
     console.print(f"report: {args.out / 'report.md'}")
     return 0 if all(r.completed for r in results) else 1
@@ -116,6 +117,17 @@ def _cmd_penalty(args: argparse.Namespace) -> int:
     return 0
 
 
+def _steps(text: str) -> int:
+    """--steps: a whole number of steps, 1 to 1e6."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of steps, got {text!r}") from None
+    if not 1 <= n <= 1_000_000:
+        raise argparse.ArgumentTypeError(f"expected 1 to 1000000 steps, got {n}")
+    return n
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rockfrac", description="Quasi-static FE fracture of rock.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -125,6 +137,8 @@ def parser() -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", help="no per-step progress lines")
     r.add_argument("--resume", action="store_true",
                    help="continue from the last checkpoint in --out ([output] checkpoint_every)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="delete the outputs of an earlier run in --out first (without it such a folder is refused)")
     r.set_defaults(func=_cmd_run)
     d = sub.add_parser("drive", help="material-point driver of a traction law along a jump path")
     d.add_argument("law", type=Path, help="law file (TOML, [law] section)")
@@ -133,25 +147,52 @@ def parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_drive)
     pp = sub.add_parser("paper", help="reproduce the paper's numerical study (figures, CSVs, report)")
     pp.add_argument("--out", type=Path, required=True)
-    pp.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
+    pp.add_argument("--steps", type=_steps, default=400, help="axial steps per case (default 400)")
     pp.add_argument("--quiet", action="store_true")
     pp.set_defaults(func=_cmd_paper)
     ps = sub.add_parser("penalty-study", help="EP CSE penalty stiffness against RP: errors vs k, rule of thumb")
     ps.add_argument("--out", type=Path, required=True)
-    ps.add_argument("--steps", type=int, default=400, help="axial steps per case (default 400)")
+    ps.add_argument("--steps", type=_steps, default=400, help="axial steps per case (default 400)")
     ps.set_defaults(func=_cmd_penalty)
     from rockfrac.bifurcation_cli import add_parser as _add_bif; _add_bif(sub)  # noqa: E702
     return p
 
 
+def _error(text: str) -> None:
+    console.print("[red]error:[/]", end=" ")
+    console.print(text, markup=False, highlight=False)
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    """Run a command; every failure is reported in a line or a few, never a traceback (set
+    ROCKFRAC_DEBUG=1 to see one for an internal error). Exit codes: 0 done, 1 a run that stopped
+    before its end (no convergence), 2 bad input, 3 an internal error, 130/143 stopped by
+    SIGINT/SIGTERM (the converged steps kept)."""
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as exit_:  # --help, or argparse's usage error (already printed)
+        return int(exit_.code or 0)
     try:
         return args.func(args)
     except CaseError as err:
-        console.print("[red]error:[/]", end=" ")
-        console.print(str(err), markup=False, highlight=False)
+        _error(str(err))
         return 2
+    except RunStopped as stop:
+        console.print(f"[yellow]{escape(str(stop))}[/]", highlight=False)
+        return stop.exit_code
+    except KeyboardInterrupt:
+        console.print("[yellow]interrupted (SIGINT)[/]", highlight=False)
+        return 130
+    except MemoryError:
+        _error("out of memory: the problem is too large for this machine (fewer cells or steps, or a "
+               "machine with more memory)")
+        return 2
+    except Exception as err:  # noqa: BLE001 (the last line of defence: no traceback reaches the user)
+        if os.environ.get("ROCKFRAC_DEBUG"):
+            raise
+        _error(f"internal error ({type(err).__name__}: {err}); this is a bug in rockfrac: please report it "
+               "with the command and input files (ROCKFRAC_DEBUG=1 shows the traceback)")
+        return 3
 
 
 if __name__ == "__main__":

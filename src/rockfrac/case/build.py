@@ -109,7 +109,10 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
         if m.kind is MeshKind.gmsh:
             from rockfrac.mesh.gmsh_io import read_mesh
 
-            mesh = read_mesh(m.file, dim=None)
+            try:
+                mesh = read_mesh(m.file, dim=None)
+            except CaseError as err:
+                raise CaseError(f"{path}: [mesh] file: {err}") from None
         elif m.kind is MeshKind.grains:
             from rockfrac.mesh.grains import grain_specimen
 
@@ -282,8 +285,8 @@ def build(case: Case, path: str = "<case>") -> Built:
         cohesives += cohesive_groups(section, interface_points(mesh.nodes, mesh.interfaces[cells]), mesh,
                                      f"cohesive {k + 1}")
     load = case.loading
-    _require([load.support, load.pin, load.axial], mesh.node_sets, "node group",
-             "[loading] support, pin, axial", path)
+    for key in ("support", "pin", "axial"):
+        _require([getattr(load, key)], mesh.node_sets, "node group", f"[loading] {key}", path)
     sets = mesh.node_sets
     top_y = dim * sets[load.axial] + 1
     held = [dim * sets[load.support] + 1, dim * sets[load.pin], top_y]
@@ -318,11 +321,14 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, surfaces: l
             face_pressure(mesh.nodes, groups[side], load.confinement, f_conf)
     n_d = model.dirichlet.shape[0]
     on_top = np.isin(model.dirichlet, top_y)
-    stages = [Stage("confinement", load.confinement_steps, np.zeros(n_d), f_conf)]
+    stages = [Stage("confinement", load.confinement_steps, np.zeros(n_d), f_conf,
+                    source=f"{path}: [loading] confinement = {load.confinement:g} Pa")]
     for k, target in enumerate(load.axial_targets):
         d_axial = np.where(on_top, -target, 0.0)
         name = "axial" if k == 0 else f"axial {k + 1}"
-        stages.append(Stage(name, load.axial_steps, d_axial, f_conf, _path(load, surfaces, path)))
+        key = "axial_displacement" if len(load.axial_targets) == 1 else f"axial_displacement[{k + 1}]"
+        stages.append(Stage(name, load.axial_steps, d_axial, f_conf, _path(load, surfaces, path),
+                            source=f"{path}: [loading] {key} = {target:g} m"))
     return stages
 
 

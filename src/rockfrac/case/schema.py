@@ -8,15 +8,34 @@ from enum import Enum
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
 
 
-class CaseError(ValueError):
-    """A case file problem, reported as 'file: [section] key: what is allowed'."""
+from rockfrac.case.messages import format_errors
+from rockfrac.case.types import (
+    Angle,
+    Coefficient,
+    Coordinate,
+    Count,
+    Displacement,
+    Energy,
+    Fraction,
+    Hardening,
+    Length,
+    Modulus,
+    Rate,
+    Stiffness,
+    Strength,
+)
+from rockfrac.case.types import Section as _Section
+from rockfrac.errors import CaseError
+from rockfrac.files import read_text
+
+__all__ = ["Case", "CaseError", "load_case", "parse_case"]
 
 
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+MAX_CELLS_ALONG = 100_000  # elements along one side of a generated mesh
+MAX_CELLS = 20_000_000  # cells of a generated mesh
 
 
 class MeshKind(str, Enum):
@@ -53,25 +72,25 @@ class MeshSection(_Section):
     Every kind provides the boundary groups bottom, top, left, right and bottom_left.
     """
 
-    kind: MeshKind = MeshKind.specimen
-    element: ElementType = Field(ElementType.quad4, description="'tri3', 'quad4' (2D) or 'hex8' (3D, plane strain)")
-    width: float = Field(0.04, gt=0, description="specimen width W [m]")
-    height: float = Field(0.08, gt=0, description="specimen height H [m]")
-    thickness: float | None = Field(None, gt=0, description="hex8 only: thickness T [m] (default 0.08)")
+    kind: MeshKind = Field(MeshKind.specimen, strict=False, description="'specimen', 'gmsh', 'grains' or 'block'")
+    element: ElementType = Field(ElementType.quad4, strict=False, description="'tri3', 'quad4' (2D) or 'hex8' (3D, plane strain)")
+    width: Length = Field(0.04, description="specimen width W [m]")
+    height: Length = Field(0.08, description="specimen height H [m]")
+    thickness: Length | None = Field(None, description="hex8 only: thickness T [m] (default 0.08)")
     crack: bool | None = Field(None, description="specimen, quad4: cut the specimen with a crack (default true)")
     crack_angle: float | None = Field(
         None, gt=-math.pi / 2, lt=math.pi / 2, description="crack angle from horizontal [rad] (default 60 deg)"
     )
-    nx: int | None = Field(None, ge=1, description="elements across (in each block when cracked) (default 1)")
-    ny: int | None = Field(None, ge=1, description="element layers (in each block when cracked) (default 1)")
-    nz: int | None = Field(None, ge=1, description="hex8 only: elements through the thickness (default 1)")
+    nx: Count | None = Field(None, le=MAX_CELLS_ALONG, description="elements across (in each block when cracked) (default 1)")
+    ny: Count | None = Field(None, le=MAX_CELLS_ALONG, description="element layers (in each block when cracked) (default 1)")
+    nz: Count | None = Field(None, le=MAX_CELLS_ALONG, description="hex8 only: elements through the thickness (default 1)")
     file: str | None = Field(None, description="gmsh: the .msh file (relative to the case file)")
-    n_grains: int | None = Field(None, ge=1, description="grains: number of grains (default 60)")
-    radius_min: float | None = Field(None, gt=0, description="grains: smallest grain radius [m] (default W/25)")
-    radius_max: float | None = Field(None, gt=0, description="grains: largest grain radius [m] (default W/12)")
-    seed: int | None = Field(None, ge=0, description="grains: random seed of the placement (default 0)")
-    element_size: float | None = Field(None, gt=0, description="grains: target element size [m] (default W/40)")
-    inclusion: list[float] | None = Field(None, description="block: weak region [x0, y0, x1, y1] [m]")
+    n_grains: Count | None = Field(None, le=100_000, description="grains: number of grains (default 60)")
+    radius_min: Length | None = Field(None, description="grains: smallest grain radius [m] (default W/25)")
+    radius_max: Length | None = Field(None, description="grains: largest grain radius [m] (default W/12)")
+    seed: int | None = Field(None, ge=0, le=2**32 - 1, description="grains: random seed of the placement (default 0)")
+    element_size: Length | None = Field(None, description="grains: target element size [m] (default W/40)")
+    inclusion: list[Coordinate] | None = Field(None, description="block: weak region [x0, y0, x1, y1] [m]")
 
     @model_validator(mode="after")
     def _per_kind(self) -> MeshSection:
@@ -98,6 +117,14 @@ class MeshSection(_Section):
                 raise ValueError("crack_angle is given but crack = false")
         if self.kind is MeshKind.specimen and self.element is ElementType.tri3:
             raise ValueError("kind = 'specimen' is made of quad4 or hex8 cells")
+        cells = (self.nx or 1) * (self.ny or 1) * (self.nz or 1)
+        if cells > MAX_CELLS:
+            raise ValueError(f"nx x ny x nz = {cells} cells; at most {MAX_CELLS} (the limit of one machine's memory)")
+        if self.kind is MeshKind.grains and self.element_size is not None:
+            estimate = self.width * self.height / self.element_size**2
+            if estimate > MAX_CELLS:
+                raise ValueError(f"element_size = {self.element_size:g} m makes about {estimate:.3g} cells of "
+                                 f"a {self.width:g} x {self.height:g} m block; at most {MAX_CELLS}")
         if self.radius_min is not None and self.radius_max is not None and self.radius_min > self.radius_max:
             raise ValueError("radius_min must not exceed radius_max")
         if self.inclusion is not None:
@@ -144,13 +171,13 @@ class BulkSection(_Section):
     p = tr(sigma)/3 tension positive (rockfrac.laws.drucker_prager).
     """
 
-    model: BulkModel = Field(BulkModel.elastic, description="'elastic' or 'drucker_prager'")
-    E: float = Field(gt=0, description="Young's modulus [Pa]")
+    model: BulkModel = Field(BulkModel.elastic, strict=False, description="'elastic' or 'drucker_prager'")
+    E: Modulus = Field(description="Young's modulus [Pa]")
     nu: float = Field(gt=-1.0, lt=0.5, description="Poisson's ratio")
-    beta: float | None = Field(None, ge=0, description="drucker_prager: friction coefficient of F [-]")
-    b: float | None = Field(None, ge=0, description="drucker_prager: dilatancy coefficient of G [-]")
-    kappa0: float | None = Field(None, ge=0, description="drucker_prager: initial strength kappa0 [Pa]")
-    H: float | None = Field(None, description="drucker_prager: hardening modulus [Pa] (default 0; < 0 softens)")
+    beta: Coefficient | None = Field(None, description="drucker_prager: friction coefficient of F [-]")
+    b: Coefficient | None = Field(None, description="drucker_prager: dilatancy coefficient of G [-]")
+    kappa0: Strength | None = Field(None, description="drucker_prager: initial strength kappa0 [Pa]")
+    H: Hardening | None = Field(None, description="drucker_prager: hardening modulus [Pa] (default 0; < 0 softens)")
 
     @model_validator(mode="after")
     def _model_keys(self) -> BulkSection:
@@ -165,7 +192,7 @@ class BulkSection(_Section):
             raise ValueError(f"model = 'drucker_prager' needs {', '.join(missing)}")
         from rockfrac.laws.drucker_prager_params import DruckerPrager
 
-        DruckerPrager(self.E, self.nu, self.beta, self.b, self.kappa0, self.H or 0.0)  # admissible?
+        DruckerPrager(self.E, self.nu, self.beta, self.b, self.kappa0, self.H or 0.0)  # admissible? (ValueError)
         return self
 
     def resolved(self) -> BulkSection:
@@ -177,7 +204,7 @@ class BulkSection(_Section):
 class MaterialSection(BulkSection):
     """A bulk material for the cells of one mesh region (several materials per model)."""
 
-    region: str = Field(description="the mesh region (physical group) of this material")
+    region: str = Field(min_length=1, max_length=200, description="the mesh region (physical group) of this material")
 
 
 class BandChoice(str, Enum):
@@ -189,23 +216,23 @@ class EmbeddedSection(_Section):
     """Embedded strong discontinuity (EDE, paper Sect. 4.1, 5): where det A = 0 is first reached, a
     surface through the element centre with the Mohr-Coulomb law and exponential softening in gamma."""
 
-    c_p: float | Literal["eq28"] = Field(
+    c_p: Strength | Literal["eq28"] = Field(
         "eq28", description="peak cohesion [Pa], or 'eq28': from the stress at bifurcation (paper eq. 28)")
-    c_r: float = Field(ge=0, description="residual cohesion [Pa]")
-    phi_p: float = Field(ge=0, lt=math.pi / 2, description="peak friction angle [rad]")
-    phi_r: float = Field(ge=0, lt=math.pi / 2, description="residual friction angle [rad]")
-    psi_p: float = Field(ge=0, lt=math.pi / 2, description="peak dilation angle [rad]")
-    alpha_c: float = Field(ge=0, description="softening rate of c [1/m]")
-    alpha_phi: float = Field(ge=0, description="softening rate of phi [1/m]")
-    alpha_psi: float = Field(ge=0, description="softening rate of psi [1/m]")
-    band: BandChoice = Field(BandChoice.positive, description="which conjugate band: 'positive' (band "
+    c_r: Strength = Field(description="residual cohesion [Pa]")
+    phi_p: Angle = Field(description="peak friction angle [rad]")
+    phi_r: Angle = Field(description="residual friction angle [rad]")
+    psi_p: Angle = Field(description="peak dilation angle [rad]")
+    alpha_c: Rate = Field(description="softening rate of c [1/m]")
+    alpha_phi: Rate = Field(description="softening rate of phi [1/m]")
+    alpha_psi: Rate = Field(description="softening rate of psi [1/m]")
+    band: BandChoice = Field(BandChoice.positive, strict=False, description="which conjugate band: 'positive' (band "
                              "angle from horizontal in (0, 90) deg) or 'negative' ((-90, 0) deg)")
     tracking: Literal["none", "local"] = Field(
         "none", description="'none': each cell's surface through its centroid (the paper's Tahoe element); "
         "'local': a cell next to a cut cell continues that cell's surface (a continuous crack path)")
     regions: list[str] | None = Field(None, description="regions that may localize (default: every "
                                       "drucker_prager region)")
-    max_cracks: int = Field(1, ge=1, description="tracking = 'local': most cracks started; further cuts "
+    max_cracks: Count = Field(1, description="tracking = 'local': most cracks started; further cuts "
                             "continue them from their tips")
 
     @model_validator(mode="after")
@@ -230,20 +257,20 @@ class WorkRule(str, Enum):
 class TractionLaw(_Section):
     """Parameters of the traction law of Sect. 4.2 (Table 1 symbols)."""
 
-    GfI: float = Field(gt=0, description="mode I fracture energy [J/m^2]")
-    GfII: float = Field(gt=0, description="mode II fracture energy [J/m^2]")
-    chi_p: float = Field(ge=0, description="peak tensile strength [Pa]")
-    chi_r: float = Field(ge=0, description="residual tensile strength [Pa]")
-    c_p: float = Field(ge=0, description="peak cohesion [Pa]")
-    c_r: float = Field(ge=0, description="residual cohesion [Pa]")
-    phi_p: float = Field(ge=0, lt=math.pi / 2, description="peak friction angle [rad]")
-    phi_r: float = Field(ge=0, lt=math.pi / 2, description="residual friction angle [rad]")
-    psi_p: float = Field(ge=0, lt=math.pi / 2, description="peak dilation angle [rad]")
-    alpha_chi: float = Field(ge=0, description="softening rate of chi [-]")
-    alpha_c: float = Field(ge=0, description="softening rate of c [-]")
-    alpha_phi: float = Field(ge=0, description="softening rate of tan(phi) [-]")
-    alpha_psi: float = Field(ge=0, description="softening rate of tan(psi) [-]")
-    work_rule: WorkRule = Field(WorkRule.backward_euler, description="work that drives softening in a step: "
+    GfI: Energy = Field(description="mode I fracture energy [J/m^2]")
+    GfII: Energy = Field(description="mode II fracture energy [J/m^2]")
+    chi_p: Strength = Field(description="peak tensile strength [Pa]")
+    chi_r: Strength = Field(description="residual tensile strength [Pa]")
+    c_p: Strength = Field(description="peak cohesion [Pa]")
+    c_r: Strength = Field(description="residual cohesion [Pa]")
+    phi_p: Angle = Field(description="peak friction angle [rad]")
+    phi_r: Angle = Field(description="residual friction angle [rad]")
+    psi_p: Angle = Field(description="peak dilation angle [rad]")
+    alpha_chi: Rate = Field(description="softening rate of chi [-]")
+    alpha_c: Rate = Field(description="softening rate of c [-]")
+    alpha_phi: Rate = Field(description="softening rate of tan(phi) [-]")
+    alpha_psi: Rate = Field(description="softening rate of tan(psi) [-]")
+    work_rule: WorkRule = Field(WorkRule.backward_euler, strict=False, description="work that drives softening in a step: "
                                 "'backward_euler' (the paper's: end traction x plastic jump increment; first "
                                 "order in the step) or 'trapezoidal' (mean of the traction where flow starts "
                                 "and the end traction; second order)")
@@ -268,15 +295,16 @@ class CohesiveSection(TractionLaw):
     the surfaces go: the specimen's crack, between two regions (grain/matrix), on every internal
     edge within a region, along named curves, or on every internal edge."""
 
-    form: CohesiveForm
-    where: Placement = Field(Placement.crack, description="'crack' (the specimen's), 'between' (two "
+    form: CohesiveForm = Field(strict=False, description="'ep' (elasto-plastic, penalty kn, kt) or 'rp' "
+                               "(rigid-plastic, augmented Lagrange multipliers)")
+    where: Placement = Field(Placement.crack, strict=False, description="'crack' (the specimen's), 'between' (two "
                              "regions), 'within' (a region), 'curves' (named curves) or 'all'")
     regions: list[str] | None = Field(None, description="between: two regions (the first is the minus side); "
                                       "within: one region")
     curves: list[str] | None = Field(None, description="curves: names of curve groups (edge sets)")
-    kn: float | None = Field(None, gt=0, description="EP only: normal penalty stiffness [Pa/m]")
-    kt: float | None = Field(None, gt=0, description="EP only: tangential penalty stiffness [Pa/m]")
-    augmentation: float | None = Field(None, gt=0, description="RP only: augmentation r [Pa/m]")
+    kn: Stiffness | None = Field(None, description="EP only: normal penalty stiffness [Pa/m]")
+    kt: Stiffness | None = Field(None, description="EP only: tangential penalty stiffness [Pa/m]")
+    augmentation: Stiffness | None = Field(None, description="RP only: augmentation r [Pa/m]")
 
     @model_validator(mode="after")
     def _placement(self) -> CohesiveSection:
@@ -319,17 +347,17 @@ class LoadingSection(_Section):
     displacement (indirect displacement control: traces the peak and any snap-back).
     """
 
-    confinement: float = Field(ge=0, description="lateral confining pressure [Pa]")
-    confinement_steps: int = Field(1, ge=1)
-    axial_displacement: float | list[float] = Field(
+    confinement: Strength = Field(description="lateral confining pressure [Pa]")
+    confinement_steps: Count = Field(1, description="steps of the confinement stage")
+    axial_displacement: Displacement | list[Displacement] = Field(
         description="top shortening [m] at the end of the axial stage (negative: extension); a list "
         "gives successive targets (load, unload, reload...), each reached in axial_steps steps")
-    axial_steps: int = Field(ge=1)
-    control: Control = Control.displacement
-    path_increment: float | None = Field(None, gt=0, description="path control: mean-jump increment [m]")
-    max_steps: int | None = Field(None, ge=1, description="path control: most axial steps")
-    stop_below_peak_fraction: float | None = Field(
-        None, gt=0, lt=1, description="stop once F_axial falls below this fraction of its peak"
+    axial_steps: Count = Field(description="steps of each axial stage")
+    control: Control = Field(Control.displacement, strict=False, description="'displacement' or 'path'")
+    path_increment: Length | None = Field(None, description="path control: mean-jump increment [m]")
+    max_steps: Count | None = Field(None, description="path control: most axial steps")
+    stop_below_peak_fraction: Fraction | None = Field(
+        None, description="stop once F_axial falls below this fraction of its peak"
     )
     support: str = Field("bottom", description="node group held in y (and in z for hex8 faces)")
     pin: str = Field("bottom_left", description="node group held in x")
@@ -361,7 +389,7 @@ class LinearSolverName(str, Enum):
 
 
 class SolverSection(_Section):
-    linear: LinearSolverName = Field(LinearSolverName.auto,
+    linear: LinearSolverName = Field(LinearSolverName.auto, strict=False,
                                      description="'auto' (the fastest installed: pardiso, mumps, superlu), "
                                      "'superlu' (SciPy), 'pardiso' (needs pypardiso), 'mumps' (needs "
                                      "python-mumps) or 'gmres-amg' (iterative, needs pyamg)")
@@ -373,26 +401,26 @@ class SolverSection(_Section):
         if self.linear.value != "auto" and self.linear.value not in available():
             raise ValueError(f"linear = {self.linear.value!r} is not installed here; available: {available()}")
         return self
-    max_iterations: int = Field(25, ge=1)
-    tol_residual: float = Field(1e-8, gt=0)
-    tol_energy: float = Field(1e-10, gt=0)
-    cutback: float = Field(0.5, gt=0, lt=1)
-    min_step: float = Field(1e-4, gt=0, le=1, description="smallest increment, fraction of the nominal")
+    max_iterations: int = Field(25, ge=1, le=1000, description="most Newton iterations of a step")
+    tol_residual: float = Field(1e-8, ge=1e-14, le=1e-2, description="relative residual norm to converge")
+    tol_energy: float = Field(1e-10, ge=1e-20, le=1e-2, description="relative energy norm to converge")
+    cutback: float = Field(0.5, ge=0.01, le=0.9, description="factor on the step after a failed one")
+    min_step: float = Field(1e-4, ge=1e-12, le=1, description="smallest increment, fraction of the nominal")
 
 
 class OutputSection(_Section):
     points: bool = Field(True, description="write points.csv (per integration point and step)")
     vtk: bool = Field(False, description="write a ParaView time series (vtk/results.pvd)")
-    vtk_every: int = Field(1, ge=1, description="write every n-th converged step to the series")
-    checkpoint_every: int = Field(0, ge=0, description="save a checkpoint every n converged steps (0: never); "
+    vtk_every: Count = Field(1, description="write every n-th converged step to the series")
+    checkpoint_every: int = Field(0, ge=0, le=10_000_000, description="save a checkpoint every n converged steps (0: never); "
                                   "rockfrac run --resume continues from the last one")
     picture: bool = Field(True, description="draw crack_map.png: the deformed mesh at the last converged step, "
                           "coloured by the plastic multiplier, with the yielded cracks coloured by their jump")
 
 
 class Case(_Section):
-    title: str = ""
-    description: str = ""
+    title: str = Field("", max_length=1000, description="one line naming the case")
+    description: str = Field("", max_length=100_000, description="what the case is, free text")
     mesh: MeshSection = MeshSection()
     bulk: BulkSection | None = None
     materials: list[MaterialSection] | None = None
@@ -455,57 +483,11 @@ class Case(_Section):
         return self.model_copy(update=update)
 
 
-SECTIONS = ("mesh", "bulk", "materials", "cohesive", "embedded", "loading", "solver", "output", "law", "material",
-            "stress")
-
-
-def _location(loc: tuple[Any, ...], arrays: frozenset = frozenset()) -> str:
-    """'[section] key', or '[section N] key' (N 1-based) for a section given as an array of tables."""
-    parts = [p for p in loc if not str(p).startswith("function-")]
-    if not parts:
-        return "(top level)"
-    head, rest = str(parts[0]), parts[1:]
-    if rest and isinstance(rest[0], int):
-        head, rest = (f"{head} {rest[0] + 1}" if head in arrays else head), rest[1:]
-    if not rest:
-        return f"[{head}]" if str(parts[0]) in SECTIONS else head
-    return f"[{head}] {'.'.join(str(p) for p in rest)}"
-
-
-def format_errors(path: str, err: ValidationError, root: Any = None, arrays: frozenset = frozenset()) -> str:
-    """One line per problem: file, section and key, what is allowed (arrays: sections given as lists)."""
-    lines = []
-    for e in err.errors():
-        where = _location(e["loc"], arrays)
-        if e["type"] == "extra_forbidden":
-            allowed = ", ".join(_section_model(root or Case, e["loc"][:-1]).model_fields)
-            lines.append(f"{path}: {where}: unknown key; allowed keys: {allowed}")
-        elif e["type"] == "missing" and len(e["loc"]) == 1 and isinstance(e["loc"][0], str):
-            lines.append(f"{path}: missing section [{e['loc'][0]}]")
-        elif e["type"] == "missing":
-            lines.append(f"{path}: {where}: missing (required)")
-        else:
-            got = f" (got {e['input']!r})" if not isinstance(e.get("input"), (dict, list)) else ""
-            msg = e["msg"].removeprefix("Value error, ")
-            lines.append(f"{path}: {where}: {msg}{got}")
-    return "\n".join(lines)
-
-
-def _section_model(model: Any, loc: tuple) -> Any:
-    """The schema class at a location (through optional, list and union annotations)."""
-    import typing
-
-    for part in loc:
-        if isinstance(part, int) or str(part).startswith("function-"):
-            continue
-        ann = model.model_fields[part].annotation
-        while True:  # unwrap X | None, list[X], X | list[X] down to a model class
-            args = [a for a in typing.get_args(ann) if a is not type(None)]
-            if isinstance(ann, type) and issubclass(ann, BaseModel):
-                break
-            ann = next((a for a in args if isinstance(a, type) and issubclass(a, BaseModel)), args[0])
-        model = ann
-    return model
+def _arrays(data: Any) -> frozenset:
+    """Top-level keys given as arrays of tables ([[materials]]...): their errors say '[materials 2]'."""
+    if not isinstance(data, dict):
+        return frozenset()
+    return frozenset(k for k, v in data.items() if isinstance(v, list) and v and isinstance(v[0], dict))
 
 
 def parse_case(data: dict, path: str = "<case>") -> Case:
@@ -513,13 +495,12 @@ def parse_case(data: dict, path: str = "<case>") -> Case:
     try:
         return Case.model_validate(data)
     except ValidationError as err:
-        arrays = frozenset(k for k, v in data.items() if isinstance(v, list) and v and isinstance(v[0], dict))
-        raise CaseError(format_errors(path, err, arrays=arrays)) from None
+        raise CaseError(format_errors(path, err, Case, _arrays(data))) from None
 
 
 def load_case(path: str | Path) -> Case:
     """Read and validate a case file; a relative mesh file is taken relative to the case file."""
-    data = read_toml(path)
+    data = read_toml(path, "a case file")
     mesh = data.get("mesh")
     if isinstance(mesh, dict) and isinstance(mesh.get("file"), str) and not Path(mesh["file"]).is_absolute():
         data["mesh"] = dict(mesh, file=str((Path(path).parent / mesh["file"]).resolve()))
@@ -529,8 +510,8 @@ def load_case(path: str | Path) -> Case:
 class DriveLaw(TractionLaw):
     """A law for the material-point driver: the EP form, so kn and kt are required."""
 
-    kn: float = Field(gt=0, description="normal penalty stiffness [Pa/m]")
-    kt: float = Field(gt=0, description="tangential penalty stiffness [Pa/m]")
+    kn: Stiffness = Field(description="normal penalty stiffness [Pa/m]")
+    kt: Stiffness = Field(description="tangential penalty stiffness [Pa/m]")
 
 
 class LawFile(_Section):
@@ -539,26 +520,24 @@ class LawFile(_Section):
     law: DriveLaw
 
 
-def read_toml(path: str | Path) -> dict:
-    """The TOML document of a file; CaseError if it is missing or not TOML."""
-    path = Path(path)
+def read_toml(path: str | Path, what: str = "a TOML file") -> dict:
+    """The TOML document of a file; CaseError if it cannot be read or is not TOML."""
+    text = read_text(path, f"{what} (TOML text)")
     try:
-        return tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise CaseError(f"{path}: no such file") from None
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise CaseError(f"{path}: not valid TOML: {err}") from None
 
 
-def load_validated(path: str | Path, model: type[BaseModel]):
+def load_validated(path: str | Path, model: type[BaseModel], what: str = "an input file"):
     """Read a TOML file into a schema ``model``; CaseError names the file, the key, what is allowed."""
-    data = read_toml(path)
+    data = read_toml(path, what)
     try:
         return model.model_validate(data)
     except ValidationError as err:
-        raise CaseError(format_errors(str(path), err, model)) from None
+        raise CaseError(format_errors(str(path), err, model, _arrays(data))) from None
 
 
 def load_law(path: str | Path) -> LawFile:
     """Read and validate a law file for ``rockfrac drive``."""
-    return load_validated(path, LawFile)
+    return load_validated(path, LawFile, "a law file")

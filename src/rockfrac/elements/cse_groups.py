@@ -13,12 +13,12 @@ import numpy as np
 from rockfrac import threads
 from rockfrac.elements import cse
 from rockfrac.elements.interface_points import InterfacePoints
-from rockfrac.elements.solid import Evaluation
+from rockfrac.elements.base import Checkpointed, Evaluation
 from rockfrac.laws import cohesive as _law
 from rockfrac.laws.cohesive_params import N_STATE, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT, CohesiveLaw
 
 
-class _CohesiveGroup:
+class _CohesiveGroup(Checkpointed):
     """State handling shared by the EP and RP cohesive surfaces."""
 
     constant = False

@@ -17,7 +17,7 @@ import numpy as np
 from rockfrac import threads
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
-from rockfrac.elements.solid import Evaluation
+from rockfrac.elements.base import Evaluation
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
@@ -133,8 +133,37 @@ def share_crack_paths(groups: list, nodes: np.ndarray) -> None:
 class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
-    checkpoint_attrs = ("state", "sigma", "e_state", "gradf", "active", "anchor", "segments", "onsets",
-                        "last_event", "crack_count")
+    checkpoint_attrs = ("state", "sigma", "e_state", "gradf", "active", "anchor", "segments", "last_event",
+                        "crack_count")
+
+    def checkpoint_state(self) -> dict[str, np.ndarray]:
+        """The committed state as named arrays, the onsets (a list of records) packed into arrays."""
+        out = super().checkpoint_state()
+        o = self.onsets
+        out["onset_cell"] = np.array([x.cell for x in o], dtype=np.int64)
+        out["onset_scalars"] = np.array([[x.band_angle, x.det_ratio, x.c_p, x.conjugate_band_angle]
+                                         for x in o]).reshape(-1, 4)
+        out["onset_normal"] = np.array([x.normal for x in o]).reshape(-1, 3)
+        out["onset_count"] = np.array([len(x.normals) for x in o], dtype=np.int64)
+        out["onset_normals"] = np.concatenate([np.asarray(x.normals).reshape(-1, 3) for x in o] or [np.zeros((0, 3))])
+        out["onset_slips"] = np.concatenate([np.asarray(x.slips).reshape(-1, 3) for x in o] or [np.zeros((0, 3))])
+        return out
+
+    def restore_checkpoint(self, saved: dict[str, np.ndarray]) -> None:
+        super().restore_checkpoint(saved)
+        names = ("onset_cell", "onset_scalars", "onset_normal", "onset_count", "onset_normals", "onset_slips")
+        missing = [n for n in names if n not in saved]
+        if missing:
+            raise ValueError(f"the checkpoint has no {type(self).__name__}.{missing[0]}: a different model")
+        cell, sc, normal, count = (saved[n] for n in names[:4])
+        ends = np.cumsum(count)
+        if not (cell.shape[0] == sc.shape[0] == normal.shape[0] == count.shape[0]) or \
+                (ends[-1] if ends.size else 0) != saved["onset_normals"].shape[0]:
+            raise ValueError("the checkpoint's onset records do not fit together (corrupted)")
+        starts = ends - count
+        self.onsets = [Onset(int(cell[i]), normal[i].copy(), float(sc[i, 0]), float(sc[i, 1]), float(sc[i, 2]),
+                             float(sc[i, 3]), saved["onset_normals"][a:b].copy(), saved["onset_slips"][a:b].copy())
+                       for i, (a, b) in enumerate(zip(starts, ends))]
 
     @property
     def crack_count(self) -> int:

@@ -6,7 +6,8 @@ import numba as nb
 import numpy as np
 
 from rockfrac import threads
-from rockfrac.elements.solid import Evaluation, SolidGeometry
+from rockfrac.elements.base import Evaluation
+from rockfrac.elements.solid import SolidGeometry
 from rockfrac.fem.kinematics import b_matrix
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws import drucker_prager as dp

@@ -2,29 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from rockfrac.elements.base import Checkpointed, Evaluation
 from rockfrac.fem.dofs import node_dofs
 from rockfrac.fem.kinematics import elastic_assemble, elastic_blocks, element_gradients, strains
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.elastic import elasticity, isotropic_elasticity
 
 
-@dataclass
-class Evaluation:
-    """Element vectors fe (n_el, nd), blocks ke (n_el, nd, nd); ok False if a local solve failed."""
-
-    fe: np.ndarray
-    ke: np.ndarray
-    ok: bool = True
-    n_switched: int = 0
-    message: str = ""
-    local_residual: float = 0.0  # relative residual of element-level equations (condensed unknowns)
-
-
-class SolidGeometry:
+class SolidGeometry(Checkpointed):
     """Cells of one reference type: dofs, physical gradients (n_el, n_qp, n_nodes, dim), det J w."""
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement):

@@ -53,7 +53,8 @@ from typing import Literal
 
 import numpy as np
 
-from rockfrac.case.schema import CaseError
+from rockfrac.errors import CaseError
+from rockfrac.files import check_file
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.mesh.mesh import Mesh
 
@@ -132,6 +133,26 @@ def gmsh_session(model: str = "rockfrac") -> Iterator[None]:
             gmsh.option.setNumber("General.Terminal", terminal)
 
 
+MSH_HEADER = b"$MeshFormat"
+
+
+def check_msh(path: str | Path) -> Path:
+    """``path`` if it is a Gmsh mesh file (.msh, starting with $MeshFormat, ASCII or binary);
+    CaseError otherwise. Gmsh *runs* .geo files and other scripts it is given (their SystemCall
+    and Shell commands reach the shell), so only mesh files, which are data, are handed to it."""
+    path = check_file(path, "a Gmsh mesh file (.msh)")
+    if path.suffix.lower() != ".msh":
+        raise CaseError(f"{path}: only Gmsh .msh mesh files are read (a {path.suffix or 'suffix-less'} file is "
+                        "refused: Gmsh would run a .geo or other script, shell calls included); mesh it first, "
+                        "e.g. gmsh -2 file.geo -o file.msh")
+    with open(path, "rb") as fh:
+        head = fh.read(256).lstrip()
+    if not head.startswith(MSH_HEADER):
+        raise CaseError(f"{path}: not a Gmsh mesh file (it does not start with $MeshFormat); only .msh meshes "
+                        "are read, never scripts")
+    return path
+
+
 def read_mesh(path: str | Path, *, dim: int | None = 2) -> Mesh:
     """Read a Gmsh .msh file into a Mesh (see the module docstring); CaseError on any problem.
 
@@ -139,8 +160,7 @@ def read_mesh(path: str | Path, *, dim: int | None = 2) -> Mesh:
     """
     if dim not in (2, 3, None):
         raise ValueError(f"dim must be 2, 3 or None, got {dim}")
-    if not Path(path).is_file():
-        raise CaseError(f"{path}: no such file")
+    check_msh(path)
     import gmsh
 
     with gmsh_session("rockfrac_read"):

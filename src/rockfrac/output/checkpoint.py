@@ -1,53 +1,135 @@
 """Checkpoints of a run: the stepping position and every group's committed state, to resume from.
 
-Groups name their committed-state attributes in ``checkpoint_attrs``; everything else of a group
-is rebuilt from the case. A checkpoint is written to a temporary file and moved into place, so a
-run stopped at any moment leaves the previous one intact.
+A checkpoint is data, never a program: a NumPy ``.npz`` archive of plain numeric and fixed-width
+text arrays, read with ``allow_pickle=False`` (an object array, which only a pickle can hold, is
+refused by NumPy before anything is built from it). It carries
+
+- ``meta.format`` / ``meta.version``: what it is, in which layout (:data:`VERSION`);
+- ``meta.case_sha256``: the SHA-256 of the resolved case text it was written for;
+- ``meta.history_sha256``: the SHA-256 of the history rows written up to its step
+  (:func:`rockfrac.output.csvout.rows_digest`), so ``--resume`` can prove that the folder's
+  ``history.csv`` is the history of this checkpoint;
+- ``meta.payload_sha256``: the SHA-256 of every other array (names, dtypes, shapes, bytes), so a
+  file damaged inside an intact archive is caught too;
+- ``position.*``, ``run.*`` and ``group<k>.<name>``: where the stepping is and the groups' state.
+
+It is written to a temporary file and moved into place, so a run killed at any moment leaves the
+previous checkpoint intact. A truncated, corrupted, foreign or old (pickle) checkpoint is a
+one-line :class:`~rockfrac.errors.CaseError`; nothing of it is used.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
-import pickle
+import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
-from rockfrac.solve.stepping import Position
+import numpy as np
 
-FILE = "checkpoint.pkl"
+from rockfrac.errors import CaseError
+
+FILE = "checkpoint.npz"
+LEGACY = "checkpoint.pkl"  # rockfrac <= 0.1 wrote pickles: never loaded (a pickle can run code)
+FORMAT = "rockfrac-checkpoint"
+VERSION = 1
 
 
-def save(folder: Path, position: Position, groups: list, run: dict, case_text: str) -> Path:
-    """Write folder/checkpoint.pkl: position, groups' committed state, run counters, the case."""
-    data = {
-        "position": position,
-        "groups": [{a: getattr(g, a) for a in getattr(g, "checkpoint_attrs", ())} for g in groups],
-        "run": dict(run),
-        "case": case_text,
+@dataclass
+class Saved:
+    """A checkpoint as read: position fields, run counters, per-group arrays, the hashes."""
+
+    position: dict[str, np.ndarray]
+    run: dict[str, float]
+    groups: list[dict[str, np.ndarray]]
+    case_sha256: str
+    history_sha256: str
+
+
+def text_sha256(text: str) -> str:
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _payload_sha256(arrays: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        if name == "meta.payload_sha256":
+            continue
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, np.ndarray]],
+         run: dict[str, float], case_sha256: str, history_sha256: str) -> Path:
+    """Write folder/checkpoint.npz atomically (see the module docstring)."""
+    arrays: dict[str, np.ndarray] = {
+        "meta.format": np.array(FORMAT),
+        "meta.version": np.array(VERSION, dtype=np.int64),
+        "meta.case_sha256": np.array(case_sha256),
+        "meta.history_sha256": np.array(history_sha256),
     }
+    for name, value in position.items():
+        arrays[f"position.{name}"] = np.asarray(value)
+    for name, value in run.items():
+        arrays[f"run.{name}"] = np.array(float(value))
+    for k, state in enumerate(groups):
+        for name, value in state.items():
+            a = np.asarray(value)
+            if a.dtype.kind not in "biufU":
+                raise TypeError(f"checkpoint: group {k} {name}: {a.dtype} is not plain data")
+            arrays[f"group{k}.{name}"] = a
+    arrays["meta.payload_sha256"] = np.array(_payload_sha256(arrays))
     path = Path(folder) / FILE
-    tmp = path.with_suffix(".tmp")
+    tmp = Path(folder) / (FILE + ".tmp")
     with open(tmp, "wb") as fh:
-        pickle.dump(data, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        np.savez(fh, **arrays)
+        fh.flush()
+        os.fsync(fh.fileno())
     os.replace(tmp, path)
     return path
 
 
-def load(folder: Path) -> dict | None:
-    """The checkpoint in folder, or None if there is none."""
-    path = Path(folder) / FILE
+def exists(folder: Path) -> bool:
+    return (Path(folder) / FILE).exists()
+
+
+def load(folder: Path) -> Saved | None:
+    """The checkpoint in ``folder``, or None if there is none; CaseError if it is not a valid one."""
+    folder = Path(folder)
+    path = folder / FILE
     if not path.exists():
+        if (folder / LEGACY).exists():
+            raise CaseError(f"{folder / LEGACY}: a pickle checkpoint of an older rockfrac; it is never loaded "
+                            "(a pickle can run code). Rerun the case from the start")
         return None
-    with open(path, "rb") as fh:
-        return pickle.load(fh)
-
-
-def restore(groups: list, states: list[dict]) -> None:
-    """Put the saved committed states back into the model's groups (same case, same order)."""
-    if len(groups) != len(states):
-        raise ValueError("the checkpoint was written for a different model (number of element groups)")
-    for g, st in zip(groups, states):
-        for name, value in st.items():
-            current = getattr(g, name)
-            if hasattr(current, "shape") and hasattr(value, "shape") and current.shape != value.shape:
-                raise ValueError(f"the checkpoint was written for a different model ({type(g).__name__}.{name})")
-            setattr(g, name, value)
+    bad = f"{path}: not a valid rockfrac checkpoint"
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {name: z[name] for name in z.files}
+    except ValueError as err:
+        why = "it holds pickled objects, which are never loaded" if "pickle" in str(err) else str(err)
+        raise CaseError(f"{bad} ({why}); delete it and rerun") from None
+    except (OSError, EOFError, zipfile.BadZipFile, KeyError) as err:
+        raise CaseError(f"{bad} (truncated or corrupted: {err}); delete it and rerun") from None
+    fmt = arrays.get("meta.format")
+    if fmt is None or fmt.dtype.kind != "U" or str(fmt) != FORMAT:
+        raise CaseError(f"{bad} (no '{FORMAT}' marker: written by another program)")
+    version = arrays.get("meta.version")
+    if version is None or version.dtype.kind != "i" or int(version) != VERSION:
+        raise CaseError(f"{bad} (layout version {version!s}; this rockfrac reads version {VERSION}); rerun the case")
+    digest = arrays.get("meta.payload_sha256")
+    if digest is None or str(digest) != _payload_sha256(arrays):
+        raise CaseError(f"{bad} (its contents do not match their checksum: corrupted); delete it and rerun")
+    position = {k.removeprefix("position."): v for k, v in arrays.items() if k.startswith("position.")}
+    run = {k.removeprefix("run."): float(v) for k, v in arrays.items() if k.startswith("run.")}
+    groups: dict[int, dict[str, np.ndarray]] = {}
+    for k, v in arrays.items():
+        if k.startswith("group"):
+            head, _, name = k.partition(".")
+            groups.setdefault(int(head.removeprefix("group")), {})[name] = v
+    n = max(groups, default=-1) + 1
+    return Saved(position, run, [groups.get(i, {}) for i in range(n)], str(arrays["meta.case_sha256"]),
+                 str(arrays["meta.history_sha256"]))

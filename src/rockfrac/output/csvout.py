@@ -1,8 +1,16 @@
-"""Row-by-row CSV writers that flush each step, so a stopped run keeps every converged step."""
+"""Row-by-row CSV writers that flush each step, so a stopped run keeps every converged step.
+
+Fields are written by :mod:`csv` (a field holding a comma, a quote or a line break is quoted), a
+real NaN as ``nan`` and an infinity as ``inf``/``-inf``; an empty cell means "not applicable"
+(the column does not apply to that row). Each writer keeps a SHA-256 of the rows it holds
+(:meth:`CsvWriter.digest`), which a checkpoint records so that a resumed run can prove the history
+it continues is its own (:func:`rows_digest`).
+"""
 
 from __future__ import annotations
 
 import csv
+import hashlib
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +27,47 @@ POINT_COLUMNS = [
 
 
 def _fmt(v: Any) -> str:
+    """A cell: '' for None (not applicable), 'nan' for a real NaN, repr of floats (round trip)."""
     if v is None:
         return ""
     if isinstance(v, (float, np.floating)):
-        return "" if np.isnan(v) else repr(float(v))
+        return repr(float(v))  # 'nan', 'inf', '-inf' included
+    if isinstance(v, (np.integer,)):
+        return str(int(v))
     return str(v)
+
+
+def _update(h: Any, row: list[str]) -> None:
+    h.update(("\x1f".join(row) + "\x1e").encode("utf-8"))
+
+
+def _kept_rows(path: Path, keep_steps: int) -> list[list[str]]:
+    """Header and the rows with step <= keep_steps of a CSV written by :class:`CsvWriter`."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    if not rows or "step" not in rows[0]:
+        raise ValueError(f"{path}: no header with a 'step' column")
+    step = rows[0].index("step")
+    kept = [rows[0]]
+    for r in rows[1:]:
+        if not r:
+            continue
+        try:
+            s = int(float(r[step]))
+        except (ValueError, IndexError):
+            break  # a row cut by a kill mid-write: nothing after it is kept
+        if s <= keep_steps:
+            kept.append(r)
+    return kept
+
+
+def rows_digest(path: str | Path, keep_steps: int) -> str:
+    """SHA-256 of the header and the rows with step <= keep_steps, as :meth:`CsvWriter.digest`
+    computes it while writing; ValueError if the file has no header with a step column."""
+    h = hashlib.sha256()
+    for r in _kept_rows(Path(path), keep_steps):
+        _update(h, r)
+    return h.hexdigest()
 
 
 class CsvWriter:
@@ -33,29 +77,30 @@ class CsvWriter:
         """A new file, or (keep_steps) the existing one cut to its rows with step <= keep_steps and
         appended to (a resumed run)."""
         self.columns = columns
-        if keep_steps is not None and Path(path).exists():
-            with open(path, newline="") as fh:
-                rows = list(csv.reader(fh))
-            step = rows[0].index("step")
-            kept = [r for r in rows[1:] if r and int(float(r[step])) <= keep_steps]
-            self._fh = open(path, "w", newline="")
-            self._csv = csv.writer(self._fh)
-            self._csv.writerow(rows[0])
-            self._csv.writerows(kept)
-        else:
-            self._fh = open(path, "w", newline="")
-            self._csv = csv.writer(self._fh)
-            self._csv.writerow(columns)
+        self._hash = hashlib.sha256()
+        rows = _kept_rows(Path(path), keep_steps) if keep_steps is not None and Path(path).exists() else [columns]
+        self._fh = open(path, "w", newline="", encoding="utf-8")
+        self._csv = csv.writer(self._fh)
+        for r in rows:
+            self._row(r)
         self._fh.flush()
 
+    def _row(self, cells: list[str]) -> None:
+        self._csv.writerow(cells)
+        _update(self._hash, cells)
+
     def write(self, row: dict[str, Any]) -> None:
-        self._csv.writerow([_fmt(row.get(c)) for c in self.columns])
+        self._row([_fmt(row.get(c)) for c in self.columns])
         self._fh.flush()
 
     def write_many(self, rows: dict[str, np.ndarray], n: int) -> None:
         for i in range(n):
-            self._csv.writerow([_fmt(rows[c][i]) if c in rows else "" for c in self.columns])
+            self._row([_fmt(rows[c][i]) if c in rows else "" for c in self.columns])
         self._fh.flush()
+
+    def digest(self) -> str:
+        """SHA-256 of the header and every row written so far (see :func:`rows_digest`)."""
+        return self._hash.copy().hexdigest()
 
     def close(self) -> None:
         self._fh.close()
@@ -63,12 +108,12 @@ class CsvWriter:
 
 def read_csv(path: str | Path) -> dict[str, np.ndarray]:
     """Columns of a CSV written here; numeric columns as float arrays (empty cells -> nan)."""
-    with open(path, newline="") as fh:
+    with open(path, newline="", encoding="utf-8") as fh:
         rows = list(csv.reader(fh))
     header, body = rows[0], rows[1:]
     out: dict[str, np.ndarray] = {}
     for j, name in enumerate(header):
-        col = [r[j] for r in body]
+        col = [r[j] if j < len(r) else "" for r in body]
         try:
             out[name] = np.array([float(v) if v != "" else np.nan for v in col])
         except ValueError:

@@ -55,6 +55,7 @@ class NewtonOptions:
     tol_energy: float = 1e-10
     force_scale: float = 1.0  # floor of the residual reference [N/m]
     line_search: int = 3  # most halvings of a correction that raises the residual (0: plain Newton)
+    should_stop: Callable[[], bool] | None = None  # looked at before every iteration (a stop request)
 
 
 @dataclass(frozen=True)
@@ -95,6 +96,7 @@ class NewtonResult:
     f_int: np.ndarray | None = None
     time_assembly: float = 0.0  # seconds in residual/tangent assembly (constitutive updates included)
     time_solve: float = 0.0  # seconds in factorization and triangular solves
+    interrupted: bool = False  # ended by options.should_stop (not converged, nothing wrong)
 
 
 def newton_step(
@@ -131,6 +133,10 @@ def newton_step(
         return _norm(asm.residual[free]) / ref
 
     for it in range(options.max_iterations + 1):
+        if options.should_stop is not None and options.should_stop():
+            result.interrupted = True
+            result.message = f"iteration {it}: stop requested"
+            return result
         f_ext = loads.forces(u_lam)
         if pending is None:
             t0 = time.perf_counter()

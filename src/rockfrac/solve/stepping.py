@@ -43,6 +43,7 @@ class Stage:
     dirichlet_end: np.ndarray  # prescribed values at the end of the stage
     f_ext_end: np.ndarray  # external forces at the end of the stage
     path: PathSpec | None = None
+    source: str = ""  # the input that sets this stage's loads, named in a failure ("[loading] confinement")
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,7 @@ class RunResult:
     steps: int
     message: str
     u: np.ndarray
+    stopped: bool = False  # ended by a stop request (should_stop), every converged step kept
 
 
 class StopRun(Exception):
@@ -107,9 +109,18 @@ def run_stages(
     on_step: Callable[[StepInfo], None],
     log: Callable[[str], None] = lambda s: None,
     start: Position | None = None,
+    should_stop: Callable[[], bool] | None = None,
 ) -> RunResult:
     """Run the stages in order from u = 0 (or from ``start``, with the model's committed state
-    restored to it); returns after the last stage or a clean stop."""
+    restored to it); returns after the last stage or a clean stop.
+
+    should_stop: asked before every step (and by Newton before every iteration, through its
+    options); once true the run returns with ``stopped`` set, the last step being the last converged.
+    """
+
+    def stopped(stage: Stage) -> RunResult:
+        return RunResult(False, count, f"stop requested in stage {stage.name!r} after step {count}", u, stopped=True)
+
     u = np.zeros(model.n_dofs) if start is None else start.u.copy()
     d_start = np.zeros(model.dirichlet.shape[0])
     f_start = np.zeros(model.n_dofs)
@@ -126,6 +137,8 @@ def run_stages(
         if start is not None and index == start.stage:
             lam, stage_steps, size, forced = start.lam, start.stage_steps, dict(start.size or nominal), start.forced
         while lam < 1.0 - 1e-12:
+            if should_stop is not None and should_stop():
+                return stopped(stage)
             use_path = stage.path is not None and (forced or stage.path.active())
             mode = "path" if use_path else "load"
             if use_path:
@@ -140,6 +153,8 @@ def run_stages(
                 size["load"] = min(size["load"], 1.0 - lam)
                 res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
+            if res.interrupted:
+                return stopped(stage)
             if (not res.converged and mode == "load" and stage.path is not None and not forced
                     and np.any(stage.path.measure()(u)[1])):
                 # a limit point under load control, and a path measure that can respond (a
@@ -154,7 +169,8 @@ def run_stages(
                     f"failed: {res.message}; cutting back")
                 size[mode] *= stepping.cutback
                 if size[mode] < stepping.min_step * nominal[mode] * (1 - 1e-12):
-                    return RunResult(False, count, f"stopped in stage {stage.name!r} at load factor "
+                    source = f" (loads from {stage.source})" if stage.source else ""
+                    return RunResult(False, count, f"stopped in stage {stage.name!r}{source} at load factor "
                                      f"{lam:.6f}: {mode} increment below min_step after {cutbacks} "
                                      f"cutbacks ({res.message})", u)
                 continue

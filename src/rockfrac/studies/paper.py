@@ -7,6 +7,7 @@ each figure and report.md, whose claims are computed from the runs.
 
 from __future__ import annotations
 
+import csv
 import math
 import time
 from dataclasses import dataclass
@@ -16,6 +17,7 @@ import numpy as np
 
 from rockfrac import analytic
 from rockfrac.case.schema import parse_case
+from rockfrac.files import prepare_output
 from rockfrac.output.csvout import read_csv
 from rockfrac.run import RunSummary, run_case
 from rockfrac.studies import table1
@@ -67,7 +69,7 @@ def run_cases(out: Path, axial_steps: int = 400, progress=None) -> list[CaseResu
     results = []
     for name, case in study_cases(axial_steps).items():
         folder = out / "cases" / name.replace(" ", "_").replace("=", "").replace(",", "")
-        summary = run_case(parse_case(case, name), folder,
+        summary = run_case(parse_case(case, name), folder, overwrite=True,
                            progress=(lambda row, n=name: progress(n, row)) if progress else None)
         results.append(CaseResult(name, read_csv(folder / "history.csv"), read_csv(folder / "points.csv"), summary))
     return results
@@ -166,10 +168,11 @@ def _mono(x: np.ndarray) -> np.ndarray:
 
 
 def _long_csv(path: Path, header: list[str], rows) -> None:
-    with open(path, "w") as fh:
-        fh.write(",".join(header) + "\n")
-        for row in rows:
-            fh.write(",".join(v if isinstance(v, str) else repr(float(v)) for v in row) + "\n")
+    """A CSV in long form (quoted where needed: case names hold commas)."""
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows([v if isinstance(v, str) else repr(float(v)) for v in row] for row in rows)
 
 
 def _force_figure(out: Path, stem: str, results: list[CaseResult], title: str | None = None) -> None:
@@ -322,8 +325,7 @@ def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[st
 
 def run_paper(out: str | Path, axial_steps: int = 400, progress=None) -> list[CaseResult]:
     """The whole study into ``out``; returns the per-case results."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_output(out, ())  # a folder we can write; the study rewrites its own outputs
     t0 = time.perf_counter()
     results = run_cases(out, axial_steps, progress)
     names, mags = figures(out, results)

@@ -11,6 +11,8 @@ thumb is k L / E' >= 1 / eps for a stiffness error below eps (cos(theta) <= 1).
 
 from __future__ import annotations
 
+import csv
+
 import math
 import time
 from dataclasses import dataclass
@@ -21,6 +23,7 @@ import numpy as np
 from rockfrac import analytic
 from rockfrac.case.schema import parse_case
 from rockfrac.output.csvout import read_csv
+from rockfrac.files import prepare_output
 from rockfrac.run import run_case
 from rockfrac.studies import table1
 
@@ -93,15 +96,14 @@ def _isv_difference(h: dict, ref: dict) -> float:
 
 def _run(out: Path, name: str, case: dict):
     folder = out / "cases" / name
-    summary = run_case(parse_case(case, name), folder)
+    summary = run_case(parse_case(case, name), folder, overwrite=True)
     return read_csv(folder / "history.csv"), read_csv(folder / "points.csv"), summary
 
 
 def run_penalty_study(out: str | Path, stiffnesses=STIFFNESSES, axial_steps: int = 400,
                       axial_displacement: float = 8e-3, progress=None) -> list[PenaltyRow]:
     """Run RP and EP(k) into out/cases, write penalty.csv, penalty.png and penalty.md."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_output(out, ())
     kw = {"axial_steps": axial_steps, "control": "path", "axial_displacement": axial_displacement}
     h_rp, p_rp, s_rp = _run(out, "rp", table1.cse_case("rp", **kw))
     if not s_rp.result.completed:
@@ -142,11 +144,11 @@ def _write(out: Path, rows: list[PenaltyRow], d_rp: float, soft_modulus: float) 
     import matplotlib.pyplot as plt
 
     cols = list(PenaltyRow.__dataclass_fields__)
-    with open(out / "penalty.csv", "w") as fh:
-        fh.write(",".join(cols) + "\n")
+    with open(out / "penalty.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)  # quoted where needed: the notes hold commas
+        w.writerow(cols)
         for r in rows:
-            vals = [getattr(r, c) for c in cols]
-            fh.write(",".join(v if isinstance(v, str) else repr(float(v)) for v in vals) + "\n")
+            w.writerow([v if isinstance(v, str) else repr(float(v)) for v in (getattr(r, c) for c in cols)])
     x = np.array([r.k_l_over_e for r in rows])
     fig, ax = plt.subplots(figsize=(6.6, 4.6))
     for attr, label, style in (("slope_error", "pre-peak slope", "o-"),

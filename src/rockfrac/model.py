@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from rockfrac.elements.base import ElementGroup
 from rockfrac.fem.assembly import Pattern, scatter_matrix, scatter_vector
 
 
@@ -31,7 +32,7 @@ class Model:
     """
 
     n_nodes: int
-    groups: list
+    groups: list[ElementGroup]
     dirichlet: np.ndarray
     dim: int = 2
     n_dofs: int = 0
@@ -46,24 +47,21 @@ class Model:
                 g.set_offset(n)
                 n += g.n_extra
         self.n_dofs = n
-        for g in self.groups:
-            if hasattr(g, "set_dofs_total"):
-                g.set_dofs_total(n)
         self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
         data = np.zeros(self.pattern.nnz)
         for g, slots in zip(self.groups, self.pattern.slots):
-            if g.constant and hasattr(g, "assemble_into"):
-                g.assemble_into(data, slots)
-            elif g.constant:
-                scatter_matrix(data, slots, g.ke)
-            if hasattr(g, "reuse_buffers"):  # its element arrays are scattered at once: keep them
-                g.reuse_buffers = True
+            if g.constant:
+                g.assemble_constant(data, slots)
+            g.reuse_buffers = True  # its element arrays are scattered at once: they may be refilled
         self._const_data = data
         self._const_matrix = self.pattern.matrix(data)
-        redundant = [g.redundant_extras(self.dirichlet) for g in self.groups if hasattr(g, "redundant_extras")]
-        if redundant:
-            self.dirichlet = np.unique(np.concatenate([self.dirichlet, *redundant])).astype(np.int64)
-        self.free = np.setdiff1d(np.arange(n), self.dirichlet)
+        self.set_dirichlet(self.dirichlet)
+
+    def set_dirichlet(self, dofs: np.ndarray) -> None:
+        """Prescribe ``dofs`` (and the extra dofs they make redundant) from now on; the rest is free."""
+        redundant = [g.redundant_extras(dofs) for g in self.groups]
+        self.dirichlet = np.unique(np.concatenate([np.asarray(dofs, dtype=np.int64), *redundant])).astype(np.int64)
+        self.free = np.setdiff1d(np.arange(self.n_dofs), self.dirichlet)
         self._bc_hit, self._bc_diag = self.pattern.positions(self.dirichlet)
 
     def begin_step(self) -> None:
@@ -80,7 +78,8 @@ class Model:
         An event happens in a step where the indicator crosses zero; the stepping then shortens the
         step so that it ends at the event (within its tolerance).
         """
-        pairs = [(g.last_event, g.event()) for g in self.groups if hasattr(g, "event")]
+        pairs = [(c, t) for c, t in ((g.committed_event(), g.event()) for g in self.groups)
+                 if c is not None and t is not None]
         if not pairs:
             return None
         return min(p[0] for p in pairs), min(p[1] for p in pairs)

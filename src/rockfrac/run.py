@@ -14,7 +14,6 @@ from rockfrac.case.build import Built, build, resolve
 from rockfrac.case.schema import Case, load_case
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
-from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output import checkpoint
 from rockfrac.output.csvout import HISTORY_COLUMNS, POINT_COLUMNS, CsvWriter, rows_digest
 from rockfrac.solve.linear import make_solver
@@ -50,8 +49,7 @@ def case_warnings(built: Built) -> list[str]:
     from rockfrac.case.build import mean_cell_size
     from rockfrac.studies.penalty import penalty_rule
 
-    for group in built.cohesives:
-        coh = group.section
+    for coh, group in zip(built.case.cohesive_sets, built.cohesives):
         if coh.form.value != "ep":
             continue
         soft_bulk = min(built.case.material_list, key=lambda m: m.E)
@@ -78,20 +76,7 @@ def case_warnings(built: Built) -> list[str]:
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
     """Per-point quantities of the discontinuities (CSE node pairs, localized EDE cells), state named,
     concatenated over the surface groups (column set: the cohesive set or the EDE region)."""
-    parts = []
-    for k, g in enumerate(built.embeddeds):
-        rec = g.records()
-        rec["state"] = np.where(rec["mode"] == 1.0, "plastic", "constrained")
-        rec["cell"] = g.cell_ids[rec["cell"]] if hasattr(g, "cell_ids") else rec["cell"]
-        rec["set"] = np.full(rec["cell"].shape[0], g.region if hasattr(g, "region") else str(k))
-        parts.append(rec)
-    for g in built.cohesives:
-        rec = g.records(u)
-        rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
-        rigid = g.section.form.value == "rp"
-        rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if rigid else "elastic")
-        rec["set"] = np.full(rec["x"].shape[0], g.set_name)
-        parts.append(rec)
+    parts = [r for r in (g.point_records(u) for g in built.model.groups) if r is not None]
     if not parts:
         return None
     keys = set.intersection(*(set(p) for p in parts))
@@ -123,7 +108,7 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
     if built.embeddeds:
         row["det_ratio"] = min(g.last_event for g in built.embeddeds)
         row["n_localized"] = int(sum(g.localized().size for g in built.embeddeds))
-    fractions = [(g.plastic_fraction(), g.wdet.size) for g in built.bulks if hasattr(g, "plastic_fraction")]
+    fractions = [(f, g.wdet.size) for g in built.bulks if (f := g.plastic_fraction()) is not None]
     if fractions:
         row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
     return row

@@ -15,7 +15,7 @@ from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
 from rockfrac.elements.interface_points import interface_points
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
-from rockfrac.elements.solid import ElasticSolid
+from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.fem.conditions import edge_pressure, face_pressure
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.laws.cohesive_params import CohesiveLaw
@@ -232,15 +232,12 @@ def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
     """
     law = law_of_section(section)
     if section.form is CohesiveForm.ep:
-        group = CohesiveEP(points, law)
-    else:
-        from rockfrac.mesh.interfaces import tied_nodes
+        return [CohesiveEP(points, law, name=name)]
+    from rockfrac.mesh.interfaces import tied_nodes
 
-        root = tied_nodes(mesh)
-        copies = np.bincount(root, minlength=mesh.n_nodes)
-        group = CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3)
-    group.section, group.set_name = section, name
-    return [group]
+    root = tied_nodes(mesh)
+    copies = np.bincount(root, minlength=mesh.n_nodes)
+    return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
@@ -256,14 +253,13 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
-            g = EmbeddedDruckerPrager(mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb),
-                                      band=emb.band.value, plane_strain=True, tracking=emb.tracking,
-                                      max_cracks=emb.max_cracks)
+            g: SolidGroup = EmbeddedDruckerPrager(
+                mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
+                plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks, region=region, cell_ids=cells)
         elif dp:
-            g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section))
+            g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section), region=region, cell_ids=cells)
         else:
-            g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu)
-        g.region, g.cell_ids = region, cells
+            g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu, region=region, cell_ids=cells)
         groups.append(g)
     from rockfrac.elements.ede import share_crack_paths
 
@@ -327,7 +323,7 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, surfaces: l
         d_axial = np.where(on_top, -target, 0.0)
         name = "axial" if k == 0 else f"axial {k + 1}"
         key = "axial_displacement" if len(load.axial_targets) == 1 else f"axial_displacement[{k + 1}]"
-        stages.append(Stage(name, load.axial_steps, d_axial, f_conf, _path(load, surfaces, path),
+        stages.append(Stage(name, load.axial_steps, d_axial, f_conf, _path(load, surfaces, path, model.n_dofs),
                             source=f"{path}: [loading] {key} = {target:g} m"))
     return stages
 
@@ -335,16 +331,16 @@ def _stages(case: Case, mesh: Mesh, model: Model, top_y: np.ndarray, surfaces: l
 class _CombinedPath:
     """Path measure over several surface groups: their measures averaged by number of points."""
 
-    def __init__(self, surfaces: list):
+    def __init__(self, surfaces: list, n_dofs: int):
         self.surfaces = surfaces
+        self.n_dofs = n_dofs
 
     def weights(self) -> np.ndarray:
-        n = np.array([g.points.n if hasattr(g, "points") else max(g.localized().size, 1) for g in self.surfaces],
-                     dtype=float)
+        n = np.array([g.path_weight() for g in self.surfaces], dtype=float)
         return n / n.sum()
 
     def measure(self):
-        parts = [g.jump_measure() for g in self.surfaces]
+        parts = [g.path_measure(self.n_dofs) for g in self.surfaces]
         w = self.weights()
 
         def combined(u: np.ndarray) -> tuple[float, np.ndarray]:
@@ -354,16 +350,15 @@ class _CombinedPath:
         return combined
 
     def active(self) -> bool:
-        return any(g.any_sliding() if isinstance(g, EmbeddedDruckerPrager) else g.any_plastic()
-                   for g in self.surfaces)
+        return any(g.path_active() for g in self.surfaces)
 
 
-def _path(load, surfaces: list, path: str) -> PathSpec | None:
+def _path(load, surfaces: list, path: str, n_dofs: int) -> PathSpec | None:
     """Path following on the discontinuities' jumps: CSE node pairs, or embedded cells."""
     if load.control is not Control.path:
         return None
     if not surfaces:  # the schema allows path control only with cohesive surfaces or [embedded]
         raise CaseError(f"{path}: [loading] control = 'path' needs a cohesive surface or an [embedded] section")
-    combined = _CombinedPath(surfaces)
-    measure = surfaces[0].jump_measure if len(surfaces) == 1 else combined.measure
+    combined = _CombinedPath(surfaces, n_dofs)
+    measure = (lambda: surfaces[0].path_measure(n_dofs)) if len(surfaces) == 1 else combined.measure
     return PathSpec(measure, load.path_increment, combined.active, load.max_steps)

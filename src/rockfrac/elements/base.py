@@ -1,10 +1,25 @@
-"""What every element group gives the model: its evaluation, and its committed state as arrays."""
+"""The element-group contract: what every group (bulk, cohesive, embedded) gives the problem.
+
+A group owns a set of cells (or interface points) of one kind, their dofs, their committed and
+trial state, and their kernels. The problem and the output talk to groups only through the
+methods of :class:`ElementGroup`; a capability a group does not have is a method that says so
+(``event`` returns None, ``path_measure`` returns None, ``point_records`` returns None...), never
+an attribute probed from outside.
+
+State: ``begin_step`` copies the committed state to the trial one, ``evaluate`` works on the trial
+state only, ``commit`` copies it back after a converged step (Ferrite's "commit once").
+"""
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+
+#: A path-following measure g(u) and its gradient dg/du (dense, n_dofs).
+Measure = Callable[[np.ndarray], tuple[float, np.ndarray]]
 
 
 @dataclass
@@ -19,10 +34,46 @@ class Evaluation:
     local_residual: float = 0.0  # relative residual of element-level equations (condensed unknowns)
 
 
-class Checkpointed:
-    """A group whose committed state is the arrays named in ``checkpoint_attrs`` (plain numbers)."""
+class ElementGroup(ABC):
+    """A group of elements of one kind on the global dof numbering.
 
+    dofs: (n_el, nd) global dof indices of each element's vector and block.
+    n_extra: unknowns the group owns beyond the displacements (RP multipliers), numbered by
+    :meth:`set_offset`. constant: its tangent never changes and its residual is linear (assembled
+    once through :meth:`assemble_constant`). name: how output names it (a region or a set).
+    """
+
+    name: str = ""
+    kind: str = "bulk"  # "bulk", "cohesive" or "embedded" (how output groups its records)
+    n_extra: int = 0
+    constant: bool = False
+    reuse_buffers: bool = False  # the problem scatters each Evaluation at once: buffers may be reused
     checkpoint_attrs: tuple[str, ...] = ()
+    dofs: np.ndarray
+
+    # -- the discrete equations --------------------------------------------------------------
+    def set_offset(self, offset: int) -> None:
+        """Number the group's extra unknowns from ``offset`` (groups without extras: nothing)."""
+
+    @abstractmethod
+    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        """Element vectors and consistent tangent blocks at u, the trial state from the committed one
+        (at u_n)."""
+
+    def assemble_constant(self, data: np.ndarray, slots: np.ndarray) -> None:
+        """data[slots] += the constant element blocks (constant groups only)."""
+        raise NotImplementedError(f"{type(self).__name__} is not a constant group")
+
+    def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
+        """Extra dofs whose equation the Dirichlet set already imposes (prescribed to zero instead)."""
+        return np.zeros(0, dtype=np.int64)
+
+    # -- state -------------------------------------------------------------------------------
+    def begin_step(self) -> None:
+        """Start a step: the trial state is the committed one."""
+
+    def commit(self) -> None:
+        """Make the trial state the committed one (after a converged step)."""
 
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays (copies)."""
@@ -31,6 +82,41 @@ class Checkpointed:
     def restore_checkpoint(self, saved: dict[str, np.ndarray]) -> None:
         """Put a :meth:`checkpoint_state` back (same model); ValueError if it does not fit."""
         restore_arrays(self, saved, self.checkpoint_attrs, type(self).__name__)
+
+    # -- events and path following -------------------------------------------------------------
+    def event(self) -> float | None:
+        """Event indicator of the trial (converged, uncommitted) state, or None if the group has no
+        events; an event happens in a step where it crosses zero from its committed value."""
+        return None
+
+    def committed_event(self) -> float | None:
+        """The event indicator of the committed state (None: no events)."""
+        return None
+
+    def path_measure(self, n_dofs: int) -> Measure | None:
+        """The group's crack-opening measure for path following over the next step (None: none)."""
+        return None
+
+    def path_active(self) -> bool:
+        """True if the committed state has a crack that opens or slides (path control may take over)."""
+        return False
+
+    def path_weight(self) -> int:
+        """How many points the path measure averages over (to combine several groups)."""
+        return 0
+
+    # -- output ------------------------------------------------------------------------------
+    def point_records(self, u: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Committed per-point quantities of the discontinuities (points.csv), or None."""
+        return None
+
+    def elastic_energy(self, u: np.ndarray) -> float:
+        """Elastic energy stored in the group at the committed state [J] (per unit thickness in 2D)."""
+        return 0.0
+
+    def dissipated_energy(self) -> float:
+        """Energy dissipated by the group up to the committed state [J] (per unit thickness in 2D)."""
+        return 0.0
 
 
 def restore_arrays(owner: object, saved: dict[str, np.ndarray], names: tuple[str, ...], what: str) -> None:

@@ -6,25 +6,25 @@ keeps its committed and trial state apart and commits only on request.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from rockfrac import threads
 from rockfrac.elements import cse
 from rockfrac.elements.interface_points import InterfacePoints
-from rockfrac.elements.base import Checkpointed, Evaluation
+from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.laws import cohesive as _law
-from rockfrac.laws.cohesive_params import N_STATE, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT, CohesiveLaw
+from rockfrac.laws.cohesive_params import MODE_PLASTIC, N_STATE, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT, CohesiveLaw
 
 
-class _CohesiveGroup(Checkpointed):
+class _CohesiveGroup(ElementGroup):
     """State handling shared by the EP and RP cohesive surfaces."""
 
-    constant = False
+    kind = "cohesive"
+    rigid = False  # RP: constrained points have no elastic jump
     checkpoint_attrs = ("state", "tangent")
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw):
+    def __init__(self, points: InterfacePoints, law: CohesiveLaw, *, name: str = "cohesive"):
+        self.name = name
         self.points = points
         self.law = law
         self.p = law.as_array()
@@ -34,10 +34,6 @@ class _CohesiveGroup(Checkpointed):
         self.tangent = np.zeros((n, 2, 2))  # committed local tangent dT/d[[u]]
         self.trial_tangent = np.zeros((n, 2, 2))
         self.status = np.zeros(n, dtype=np.int64)
-        self._n_dofs = 0  # set by the model (size of the global vector)
-
-    def set_dofs_total(self, n_dofs: int) -> None:
-        self._n_dofs = n_dofs
 
     def begin_step(self) -> None:
         self.trial[:] = self.state
@@ -64,7 +60,24 @@ class _CohesiveGroup(Checkpointed):
         g = np.where(norm[:, None] > 0.0, g / np.where(norm > 0.0, norm, 1.0)[:, None], [0.0, 1.0])
         return np.einsum("pji,pj->pi", self.points.frame, g)  # R^T g
 
-    def jump_measure(self) -> Callable[[np.ndarray], tuple[float, np.ndarray]]:
+    def path_measure(self, n_dofs: int) -> Measure:
+        return self.jump_measure(n_dofs)
+
+    def path_active(self) -> bool:
+        return self.any_plastic()
+
+    def path_weight(self) -> int:
+        return self.points.n
+
+    def point_records(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`records` with the plastic jump's norm, the state named and the set."""
+        rec = self.records(u)
+        rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
+        rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if self.rigid else "elastic")
+        rec["set"] = np.full(rec["x"].shape[0], self.name)
+        return rec
+
+    def jump_measure(self, n_dofs: int) -> Measure:
         """Path-following measure for the next step: g(u) = sum(w m . [[u]]) / sum(w) [m], and dg/du.
 
         m are the flow directions of the committed state, frozen for the step, so g is linear in u
@@ -72,7 +85,7 @@ class _CohesiveGroup(Checkpointed):
         """
         pts = self.points
         m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]
-        grad = np.zeros(self._n_dofs)
+        grad = np.zeros(n_dofs)
         np.add.at(grad, 2 * pts.plus, m[:, 0])
         np.add.at(grad, 2 * pts.plus + 1, m[:, 1])
         np.add.at(grad, 2 * pts.minus, -m[:, 0])
@@ -120,10 +133,10 @@ class CohesiveEP(_CohesiveGroup):
 
     n_extra = 0
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw):
+    def __init__(self, points: InterfacePoints, law: CohesiveLaw, *, name: str = "cohesive"):
         if law.rigid:
             raise ValueError("an EP cohesive surface needs finite kn and kt")
-        super().__init__(points, law)
+        super().__init__(points, law, name=name)
         self.dofs = points.dofs
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
@@ -156,10 +169,11 @@ class CohesiveRP(_CohesiveGroup):
 
     JUNCTION_EPS = 1e-8
     PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
+    rigid = True
 
     def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float,
-                 junction: np.ndarray | None = None):
-        super().__init__(points, law)
+                 junction: np.ndarray | None = None, *, name: str = "cohesive"):
+        super().__init__(points, law, name=name)
         self.aug = float(augmentation)
         self.eps = np.where(junction, self.JUNCTION_EPS, 0.0) if junction is not None else np.zeros(points.n)
         self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step

@@ -17,7 +17,7 @@ import numpy as np
 from rockfrac import threads
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
-from rockfrac.elements.base import Evaluation
+from rockfrac.elements.base import Evaluation, Measure
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
@@ -60,7 +60,7 @@ class CrackPaths:
         self.nodes = nodes
         self.groups = groups
         self.cracks = 0
-        ids = [getattr(g, "cell_ids", np.arange(g.cells.shape[0])) for g in groups]
+        ids = [g.cell_ids for g in groups]
         n_cells = int(max(i.max(initial=-1) for i in ids)) + 1
         self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each global cell
         cells = []
@@ -113,7 +113,7 @@ class CrackPaths:
         k = self.groups.index(group)
         out = set()
         for g in self.groups:
-            ids = getattr(g, "cell_ids", np.arange(g.cells.shape[0]))
+            ids = g.cell_ids
             for e in np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0):
                 for c, _, _ in self.nbr.get(int(ids[e]), []):
                     gk, local = self.owner[c]
@@ -173,10 +173,13 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
     def crack_count(self, value: int) -> None:
         self.paths.cracks = value
 
+    kind = "embedded"
+
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
                  surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none",
-                 max_cracks: int = 1):
-        super().__init__(nodes, cells, ref, law)
+                 max_cracks: int = 1, *, region: str = "bulk", cell_ids: np.ndarray | None = None):
+        super().__init__(nodes, cells, ref, law, region=region, cell_ids=cell_ids)
+        self._paths: CrackPaths | None = None
         if band not in ("positive", "negative"):
             raise ValueError(f"band must be 'positive' or 'negative', got {band!r}")
         if tracking not in ("none", "local"):
@@ -279,6 +282,10 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         tracking, the crack-tip cells are added whatever their state: see _scan)."""
         plastic = (state[..., S_MODE] == MODE_CONE).any(axis=1)
         return np.flatnonzero(plastic & (self.e_trial[:, K.E_LOC] == 0.0))
+
+    def committed_event(self) -> float:
+        """Min det A / det A^e of the committed state over cells that may still localize."""
+        return self.last_event
 
     def event(self) -> float:
         """Min det A / det A^e (eq. 7-8) over the trial (converged, uncommitted) plastic points of
@@ -386,12 +393,12 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
     @property
     def paths(self) -> CrackPaths:
         """The crack-path registry this group shares with the other EDE groups of the model."""
-        if getattr(self, "_paths", None) is None:
+        if self._paths is None:
             self._paths = CrackPaths(self.nodes, [self])
         return self._paths
 
     def _global(self, e: int) -> int:
-        return int(self.cell_ids[e]) if hasattr(self, "cell_ids") else int(e)
+        return int(self.cell_ids[e])
 
     def _tip_cells(self) -> np.ndarray:
         """This group's uncut cells where a cut cell's surface ends on their shared edge (crack tips)."""
@@ -513,7 +520,29 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
 
         return measure
 
+    def path_measure(self, n_dofs: int) -> Measure:
+        return self.jump_measure()
+
+    def path_active(self) -> bool:
+        return self.any_sliding()
+
+    def path_weight(self) -> int:
+        return max(int(self.localized().size), 1)
+
     # -- output ----------------------------------------------------------------------------
+    def point_records(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`records` with the state named, the mesh's cell numbers and the region as the set."""
+        rec = self.records()
+        rec["state"] = np.where(rec["mode"] == 1.0, "plastic", "constrained")
+        rec["cell"] = self.cell_ids[rec["cell"]]
+        rec["set"] = np.full(rec["cell"].shape[0], self.region)
+        return rec
+
+    def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        out = super().cell_fields(u)
+        out["localized"] = self.e_state[:, K.E_LOC].astype(np.int8)
+        return out
+
     def localized(self) -> np.ndarray:
         return np.flatnonzero(self.e_state[:, K.E_LOC] == 1.0)
 

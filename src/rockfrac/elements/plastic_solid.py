@@ -7,11 +7,11 @@ import numpy as np
 
 from rockfrac import threads
 from rockfrac.elements.base import Evaluation
-from rockfrac.elements.solid import SolidGeometry
+from rockfrac.elements.solid import SolidGroup
 from rockfrac.fem.kinematics import b_matrix
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws import drucker_prager as dp
-from rockfrac.laws.drucker_prager_params import N_STATE, S_MODE, DruckerPrager
+from rockfrac.laws.drucker_prager_params import N_STATE, S_GAMMA, S_MODE, DruckerPrager
 
 
 @nb.njit(cache=True, inline="always")
@@ -165,15 +165,14 @@ def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
                                         fe[e], ke[e], scratch)
 
 
-class DruckerPragerSolid(SolidGeometry):
+class DruckerPragerSolid(SolidGroup):
     """Nonassociative Drucker-Prager bulk; trial and committed state kept apart."""
 
-    constant = False
-    n_extra = 0
     checkpoint_attrs = ("state", "sigma")
 
-    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager):
-        super().__init__(nodes, cells, ref)
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager, *,
+                 region: str = "bulk", cell_ids: np.ndarray | None = None):
+        super().__init__(nodes, cells, ref, region=region, cell_ids=cell_ids)
         self.law = law
         self.p = law.as_array()
         shape = (cells.shape[0], ref.points.shape[0])
@@ -182,8 +181,7 @@ class DruckerPragerSolid(SolidGeometry):
         self.sigma = np.zeros(shape + (6,))  # committed stresses
         self.trial_sigma = np.zeros_like(self.sigma)
         self.status = np.zeros(shape[0], dtype=np.int64)
-
-    reuse_buffers = False  # the model sets it: evaluate() then refills the same fe, ke each call
+        self._buffers: tuple[np.ndarray, np.ndarray] | None = None
 
     def element_buffers(self) -> tuple[np.ndarray, np.ndarray]:
         """fe (n_el, nd), ke (n_el, nd, nd) for evaluate(): new arrays, or the group's own ones
@@ -192,7 +190,7 @@ class DruckerPragerSolid(SolidGeometry):
         n_el, nd = self.dofs.shape
         if not self.reuse_buffers:
             return np.empty((n_el, nd)), np.empty((n_el, nd, nd))
-        if getattr(self, "_buffers", None) is None:
+        if self._buffers is None:
             self._buffers = (np.empty((n_el, nd)), np.empty((n_el, nd, nd)))
         return self._buffers
 
@@ -216,6 +214,12 @@ class DruckerPragerSolid(SolidGeometry):
     def stresses(self, u: np.ndarray | None = None) -> np.ndarray:
         """Committed Gauss-point stresses (n_el, n_qp, 6) [Pa]."""
         return self.sigma
+
+    def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        out = super().cell_fields(u)
+        out["plastic_strain"] = self.state[..., 0:6].mean(axis=1)
+        out["gamma"] = self.state[..., S_GAMMA].mean(axis=1)
+        return out
 
     def plastic_fraction(self) -> float:
         """Share of Gauss points whose last committed update was plastic."""

@@ -1,23 +1,30 @@
-"""Bulk solid element groups (Q4 plane strain or Hex8), on precomputed shape gradients."""
+"""Bulk solid element groups (Q4/T3 plane strain or Hex8), on precomputed shape gradients."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from rockfrac.elements.base import Checkpointed, Evaluation
+from rockfrac.elements.base import ElementGroup, Evaluation
 from rockfrac.fem.dofs import node_dofs
 from rockfrac.fem.kinematics import elastic_assemble, elastic_blocks, element_gradients, strains
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.elastic import elasticity, isotropic_elasticity
 
 
-class SolidGeometry(Checkpointed):
-    """Cells of one reference type: dofs, physical gradients (n_el, n_qp, n_nodes, dim), det J w."""
+class SolidGeometry:
+    """Cells of one reference type: dofs, physical gradients (n_el, n_qp, n_nodes, dim), det J w.
 
-    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement):
+    region: the mesh region (material) the cells belong to; cell_ids: their indices in the mesh
+    (default: all cells, in order).
+    """
+
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, *, region: str = "bulk",
+                 cell_ids: np.ndarray | None = None):
         self.ref = ref
         self.dim = ref.dim
         self.cells = cells
+        self.name = self.region = region
+        self.cell_ids = np.arange(cells.shape[0]) if cell_ids is None else np.asarray(cell_ids)
         self.grads, self.wdet = element_gradients(nodes[cells], ref)
         bad = np.flatnonzero((self.wdet <= 0.0).any(axis=1))
         if bad.size:
@@ -29,32 +36,51 @@ class SolidGeometry(Checkpointed):
         return strains(self.grads, np.ascontiguousarray(u[self.dofs]))
 
 
-class ElasticSolid(SolidGeometry):
+class SolidGroup(SolidGeometry, ElementGroup):
+    """A bulk element group: the cells of one material region."""
+
+    def stresses(self, u: np.ndarray) -> np.ndarray:
+        """Gauss-point stresses (n_el, n_qp, 6) [Pa] at the committed state."""
+        raise NotImplementedError
+
+    def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-cell fields for ParaView at the committed state: stress (n_el, 6) averaged over the
+        Gauss points, plastic_strain (n_el, 6), gamma (n_el,), localized (n_el,) 0/1."""
+        n = self.cells.shape[0]
+        return {"stress": self.stresses(u).mean(axis=1), "plastic_strain": np.zeros((n, 6)),
+                "gamma": np.zeros(n), "localized": np.zeros(n, dtype=np.int8)}
+
+    def plastic_fraction(self) -> float | None:
+        """Share of Gauss points whose last committed update was plastic (None: an elastic group)."""
+        return None
+
+
+class ElasticSolid(SolidGroup):
     """Linear elastic bulk (plane strain in 2D); its stiffness is constant and assembled once."""
 
     constant = True
-    n_extra = 0
 
-    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, E: float, nu: float):
-        super().__init__(nodes, cells, ref)
+    def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, E: float, nu: float, *,
+                 region: str = "bulk", cell_ids: np.ndarray | None = None):
+        super().__init__(nodes, cells, ref, region=region, cell_ids=cell_ids)
         self.E, self.nu = E, nu
         self.d = elasticity(E, nu, self.dim)
 
     @property
     def ke(self) -> np.ndarray:
-        """Element stiffness matrices (n_el, nd, nd) [N/m] (made on request: the model assembles with
-        :meth:`assemble_into`, which never holds them all)."""
+        """Element stiffness matrices (n_el, nd, nd) [N/m] (made on request: the problem assembles with
+        :meth:`assemble_constant`, which never holds them all)."""
         return elastic_blocks(self.grads, self.wdet, self.d)
 
-    def assemble_into(self, data: np.ndarray, slots: np.ndarray) -> None:
+    def assemble_constant(self, data: np.ndarray, slots: np.ndarray) -> None:
         """data[slots] += the element stiffnesses, values and scatter in one pass."""
         elastic_assemble(self.grads, self.wdet, self.d, slots, data)
+
+    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        """fe = ke u_e (the problem assembles this group once, as a constant matrix)."""
+        ke = self.ke
+        return Evaluation(np.einsum("eij,ej->ei", ke, u[self.dofs]), ke)
 
     def stresses(self, u: np.ndarray) -> np.ndarray:
         """Gauss-point stresses (n_el, n_qp, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz)."""
         return self.strains(u) @ isotropic_elasticity(self.E, self.nu).T
-
-    # constant groups have nothing to commit
-    def begin_step(self) -> None: ...
-
-    def commit(self) -> None: ...

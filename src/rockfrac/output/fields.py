@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac.elements import ede_kernel as K
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
-from rockfrac.laws.drucker_prager_params import S_GAMMA
 from rockfrac.output.vtk import CrackState, StepFields, step_fields
 
 
@@ -18,14 +16,9 @@ def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
     out = {"stress": np.zeros((n_el, 6)), "plastic_strain": np.zeros((n_el, 6)), "gamma": np.zeros(n_el),
            "localized": np.zeros(n_el, dtype=np.int8), "region": np.zeros(n_el, dtype=np.int32)}
     for k, g in enumerate(built.bulks):
-        ids = getattr(g, "cell_ids", np.arange(n_el))
-        out["stress"][ids] = g.stresses(u).mean(axis=1)
-        out["region"][ids] = k
-        if hasattr(g, "state"):  # Drucker-Prager: committed plastic strain and multiplier
-            out["plastic_strain"][ids] = g.state[..., 0:6].mean(axis=1)
-            out["gamma"][ids] = g.state[..., S_GAMMA].mean(axis=1)
-        if hasattr(g, "e_state"):
-            out["localized"][ids] = g.e_state[:, K.E_LOC].astype(np.int8)
+        out["region"][g.cell_ids] = k
+        for name, values in g.cell_fields(u).items():
+            out[name][g.cell_ids] = values
     return out
 
 
@@ -55,7 +48,7 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
                 "traction": np.column_stack([rec["T_t"], rec["T_n"]]),
                 "plastic_jump": np.column_stack([rec["jump_p_t"], rec["jump_p_n"]]),
                 "c": rec["c"], "tan_phi": rec["tan_phi"], "chi": rec["chi"]}
-        rigid = g.section.form.value == "rp"
+        rigid = g.rigid
         st = np.where(rec["mode"] == MODE_PLASTIC, CrackState.PLASTIC,
                       CrackState.CONSTRAINED if rigid else CrackState.ELASTIC).astype(np.int8)
         for a, b in ((0, 2), (1, 3)):  # the two node pairs of each interface cell
@@ -81,7 +74,7 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
         seg = g.segments[cells]
         x0.append(seg[:, 0])
         x1.append(seg[:, 1])
-        host.append(getattr(g, "cell_ids", np.arange(g.cells.shape[0]))[cells])
+        host.append(g.cell_ids[cells])
         data["jump"].append(np.column_stack([rec["jump_t"], rec["jump_n"]]))
         data["traction"].append(np.column_stack([rec["T_t"], rec["T_n"]]))
         data["c"].append(rec["c"])

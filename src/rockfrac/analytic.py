@@ -63,3 +63,9 @@ def series_slope(E: float, nu: float, width: float, height: float, kn: float, kt
     s, c = math.sin(theta), math.cos(theta)
     compliance = height / plane_strain_modulus(E, nu) + s * s * c / kt + c**3 / kn
     return width / compliance
+
+
+def penalty_rule(e_plane: float, length: float, accuracy: float = 0.01) -> float:
+    """Smallest penalty [Pa/m] whose artificial compliance stays below ``accuracy`` of the bulk's:
+    k >= E' / (accuracy L) (the rule of thumb this study supports)."""
+    return e_plane / (accuracy * length)

@@ -11,6 +11,7 @@ import numpy as np
 from rich.console import Console
 from rich.markup import escape
 
+from rockfrac.bifurcation_cli import add_parser as add_bifurcation_parser
 from rockfrac.errors import CaseError, RunStopped
 
 console = Console(stderr=True, soft_wrap=True)
@@ -154,7 +155,7 @@ def parser() -> argparse.ArgumentParser:
     ps.add_argument("--out", type=Path, required=True)
     ps.add_argument("--steps", type=_steps, default=400, help="axial steps per case (default 400)")
     ps.set_defaults(func=_cmd_penalty)
-    from rockfrac.bifurcation_cli import add_parser as _add_bif; _add_bif(sub)  # noqa: E702
+    add_bifurcation_parser(sub)
     return p
 
 

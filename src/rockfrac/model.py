@@ -39,6 +39,7 @@ class Model:
     pattern: Pattern | None = None
     _const_data: np.ndarray | None = field(default=None, repr=False)
     _const_matrix: sp.csr_matrix | None = field(default=None, repr=False)
+    _const_force: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         n = self.dim * self.n_nodes
@@ -55,7 +56,17 @@ class Model:
             g.reuse_buffers = True  # its element arrays are scattered at once: they may be refilled
         self._const_data = data
         self._const_matrix = self.pattern.matrix(data)
+        self.update_constant_force()
         self.set_dirichlet(self.dirichlet)
+
+    def update_constant_force(self) -> None:
+        """Collect the constant groups' constant element vectors (their in-situ stress) into f_int."""
+        forces = [(g, f) for g in self.groups if g.constant and (f := g.constant_force()) is not None]
+        self._const_force = None
+        if forces:
+            self._const_force = np.zeros(self.n_dofs)
+            for g, f in forces:
+                scatter_vector(self._const_force, g.dofs, f)
 
     def set_dirichlet(self, dofs: np.ndarray) -> None:
         """Prescribe ``dofs`` (and the extra dofs they make redundant) from now on; the rest is free."""
@@ -63,6 +74,13 @@ class Model:
         self.dirichlet = np.unique(np.concatenate([np.asarray(dofs, dtype=np.int64), *redundant])).astype(np.int64)
         self.free = np.setdiff1d(np.arange(self.n_dofs), self.dirichlet)
         self._bc_hit, self._bc_diag = self.pattern.positions(self.dirichlet)
+
+    def initial_unknowns(self) -> np.ndarray:
+        """The global vector at t = 0: zero displacements, the groups' initial extra unknowns."""
+        u0 = np.zeros(self.n_dofs)
+        for g in self.groups:
+            g.initial_unknowns(u0)
+        return u0
 
     def begin_step(self) -> None:
         for g in self.groups:
@@ -88,6 +106,8 @@ class Model:
         """Residual and consistent tangent at u (trial state from the committed one at u_n)."""
         data = self._const_data.copy()
         f_int = self._const_matrix @ u
+        if self._const_force is not None:
+            f_int += self._const_force
         ok, switched, msgs, local = True, 0, [], 0.0
         for g, slots in zip(self.groups, self.pattern.slots):
             if g.constant:

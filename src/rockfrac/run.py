@@ -1,27 +1,50 @@
-"""``rockfrac run``: a case file in, history.csv / points.csv / case.toml / run.log out."""
+"""``rockfrac run``: a case file in, history.csv / points.csv / case.toml / run.log out.
+
+The run composes the observers of :mod:`rockfrac.output.observers` around the stepping: the
+history (with its generic quantities, :mod:`rockfrac.output.history`), the point records, the
+ParaView series, the log, checkpoints, stop rules and progress each see every converged step.
+"""
 
 from __future__ import annotations
 
 import csv
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import tomli_w
 
-from rockfrac.case.build import Built, build, resolve
+from rockfrac.analytic import penalty_rule, plane_strain_modulus
+from rockfrac.case.build import Built, build, mean_cell_size, resolve
+from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
 from rockfrac.output import checkpoint
-from rockfrac.output.csvout import HISTORY_COLUMNS, POINT_COLUMNS, CsvWriter, rows_digest
+from rockfrac.output.csvout import POINT_COLUMNS, rows_digest
+from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
+from rockfrac.output.observers import (
+    Checkpoints,
+    HistoryCsv,
+    Observer,
+    PointsCsv,
+    Progress,
+    RunLog,
+    Step,
+    StopRules,
+    VtkSeriesWriter,
+    position_from_arrays,
+)
 from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import NewtonOptions
-from rockfrac.solve.stepping import Position, RunResult, SteppingOptions, StepInfo, StopRun, run_stages
+from rockfrac.solve.stepping import Position, RunResult, StepInfo, SteppingOptions, run_stages
 from rockfrac.solve.stop import stop_on_signals
 
-STATE_NAMES = {0: "elastic", 1: "plastic"}
+OUTPUTS = ("history.csv", "points.csv", "case.toml", "run.log", checkpoint.FILE, checkpoint.FILE + ".tmp",
+           checkpoint.LEGACY, "vtk", "crack_map.png")  # what a run writes into its folder
+PENALTY_ACCURACY = 0.01  # rockfrac run warns when an EP penalty's artificial compliance may exceed this
 
 
 @dataclass
@@ -31,7 +54,7 @@ class RunSummary:
     result: RunResult
     out: Path
     wall_time: float
-    peak_force: float
+    peak_force: float  # peak F_axial of the [loading] form's axial stages (nan for [[stages]])
     newton_iterations: int
     built: Built | None = None
     warnings: list[str] | None = None
@@ -39,16 +62,9 @@ class RunSummary:
     exit_code: int = 0  # what the command line returns for a stopped run (130 SIGINT, 143 SIGTERM)
 
 
-PENALTY_ACCURACY = 0.01  # rockfrac run warns when an EP penalty's artificial compliance may exceed this
-
-
 def case_warnings(built: Built) -> list[str]:
     """Things a user should know before trusting the run (not errors: the run goes ahead)."""
     out = []
-    from rockfrac.analytic import plane_strain_modulus
-    from rockfrac.case.build import mean_cell_size
-    from rockfrac.studies.penalty import penalty_rule
-
     for coh, group in zip(built.case.cohesive_sets, built.cohesives):
         if coh.form.value != "ep":
             continue
@@ -86,55 +102,30 @@ def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
 
 
 def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
-    top = built.top_y_dofs
-    reaction = info.f_int[top].sum() / built.thickness  # per unit thickness; no external force on top
-    row = {
-        "step": info.step,
-        "stage": info.stage,
-        "load_factor": info.load_factor,
-        "u_axial": -float(info.u[top].mean()),
-        "F_axial": -float(reaction),
-        "newton_iterations": info.newton.iterations,
-        "cutbacks": info.cutbacks,
-        "control": info.controlled_by,
-    }
-    if rec is not None and rec["state"].size:
-        for k in ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi"):
-            if k in rec:
-                row[k] = float(np.mean(rec[k]))
-        row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
-    elif rec is not None:
-        row["n_plastic"] = 0
-    if built.embeddeds:
-        row["det_ratio"] = min(g.last_event for g in built.embeddeds)
-        row["n_localized"] = int(sum(g.localized().size for g in built.embeddeds))
-    fractions = [(f, g.wdet.size) for g in built.bulks if (f := g.plastic_fraction()) is not None]
-    if fractions:
-        row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
+    """The step's base, paper and crack columns (what the engine benchmarks record)."""
+    row = step_columns(info)
+    if built.case.loading is not None:
+        row.update(axial_columns(info.u, info.f_int, built.top_y_dofs, built.thickness))
+    row.update(crack_columns(built.model.groups, rec))
     return row
 
 
-OUTPUTS = ("history.csv", "points.csv", "case.toml", "run.log", checkpoint.FILE, checkpoint.FILE + ".tmp",
-           checkpoint.LEGACY, "vtk", "crack_map.png")  # what a run writes into its folder
-
-
-def _position_arrays(p: Position) -> dict[str, np.ndarray]:
-    """A stepping position as plain arrays (for the checkpoint)."""
-    return {"stage": np.array(p.stage), "lam": np.array(p.lam), "u": p.u, "count": np.array(p.count),
-            "stage_steps": np.array(p.stage_steps), "size_load": np.array(p.size.get("load", np.nan)),
-            "size_path": np.array(p.size.get("path", np.nan)), "has_size": np.array(bool(p.size)),
-            "forced": np.array(p.forced)}
-
-
-def _position(a: dict[str, np.ndarray], n_dofs: int, where: Path) -> Position:
-    names = ("stage", "lam", "u", "count", "stage_steps", "size_load", "size_path", "has_size", "forced")
-    missing = [n for n in names if n not in a]
-    if missing or a["u"].shape != (n_dofs,):
-        raise CaseError(f"{where}: --resume: the checkpoint was written for a different model "
-                        f"({'no ' + missing[0] if missing else 'its displacement vector has another size'})")
-    size = {"load": float(a["size_load"]), "path": float(a["size_path"])} if bool(a["has_size"]) else {}
-    return Position(int(a["stage"]), float(a["lam"]), a["u"].astype(float), int(a["count"]), int(a["stage_steps"]),
-                    size, bool(a["forced"]))
+def make_history(built: Built, path: str = "<case>") -> History:
+    """The history quantities of a built case, its stop rules checked against them."""
+    history = History(built.mesh, built.model, thickness=built.thickness, u0=built.program.u0, f0=built.program.f0,
+                      monitors=resolve_monitors(built.case, built.mesh, path),
+                      axial_dofs=built.top_y_dofs if built.case.loading is not None else None)
+    for m in history.monitors:
+        clash = [c for c in m.columns if c in history.reserved]
+        if clash:
+            raise CaseError(f"{path}: [[monitors]] name {m.name!r}: its column {clash[0]!r} is already a history "
+                            "column; choose another name")
+    for k, stop in enumerate(built.program.stops):
+        if stop is not None and stop.quantity not in history.columns:
+            example = ", ".join(c for c in history.columns if c.startswith("R_"))
+            raise CaseError(f"{path}: [stages {k + 1}] stop.quantity: {stop.quantity!r} is not a history column "
+                            f"(reactions: {example or 'none'})")
+    return history
 
 
 def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
@@ -146,7 +137,14 @@ def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
     if saved.case_sha256 != checkpoint.text_sha256(case_text):
         raise CaseError(f"{out}: --resume: the case differs from the one the checkpoint was written for "
                         f"({out / 'case.toml'}); resume with the same case")
-    position = _position(saved.position, built.model.n_dofs, out)
+    try:
+        position = position_from_arrays(saved.position)
+    except KeyError as err:
+        raise CaseError(f"{out}: --resume: the checkpoint has no position field {err}: written for a different "
+                        "model") from None
+    if position.u.shape != (built.model.n_dofs,):
+        raise CaseError(f"{out}: --resume: the checkpoint was written for a different model (its displacement "
+                        "vector has another size)")
     history = out / "history.csv"
     if not history.is_file():
         raise CaseError(f"{history}: --resume: missing, so the checkpoint at step {position.count} cannot be "
@@ -167,34 +165,12 @@ def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
             g.restore_checkpoint(state)
     except ValueError as err:
         raise CaseError(f"{out}: --resume: {err}") from None
-    run = {"F": saved.run.get("F", -np.inf), "iters": int(saved.run.get("iters", 0)),
-           "onsets": int(saved.run.get("onsets", 0))}
-    return position, run
+    return position, saved.run
 
 
-def _open_log(out: Path, start: Position | None):
-    """run.log, line-buffered (a killed run's log is complete up to its last line). A resumed run's
-    log is cut after the line of the checkpoint it resumes from, so no step appears twice."""
-    path = out / "run.log"
-    if start is None:
-        return open(path, "w", buffering=1, encoding="utf-8")
-    mark = f"  checkpoint at step {start.count}"
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError):
-        lines = []
-    cut = max((i for i, line in enumerate(lines) if line == mark), default=None)
-    fh = open(path, "w", buffering=1, encoding="utf-8")
-    if cut is None:
-        fh.write(f"(run.log of the earlier run did not record its checkpoint at step {start.count}; "
-                 "its lines were dropped)\n")
-    else:
-        fh.write("".join(line + "\n" for line in lines[: cut + 1]))
-    return fh
-
-
-def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label: str | None = None,
-             resume: bool = False, overwrite: bool = False, warn=None, on_start=None) -> RunSummary:
+def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict], None] | None = None,
+             path_label: str | None = None, resume: bool = False, overwrite: bool = False,
+             warn: Callable[[str], None] | None = None, on_start: Callable[[], None] | None = None) -> RunSummary:
     """Run a validated case (or a case file) and write its outputs into ``out``.
 
     resume: continue from out/checkpoint.npz (written every [output] checkpoint_every steps) with the
@@ -209,112 +185,116 @@ def run_case(case: Case | str | Path, out: str | Path, progress=None, path_label
     if not isinstance(case, Case):
         case = load_case(case)
     built = build(case, label)  # every input error surfaces here, before any step
+    history = make_history(built, label)
     resolved = resolve(case)
     case_text = tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True))
     out = prepare_output(out, OUTPUTS, overwrite=overwrite, resume=resume)
-    start, run_state = None, {"F": -np.inf, "iters": 0, "onsets": 0}
+    start, counters = None, {}
     if resume:
-        start, run_state = _resume(out, built, case_text)
+        start, counters = _resume(out, built, case_text)
+        history.restore({"work": np.array(counters.get("work", 0.0)), "u_prev": start.u[: history.n_u],
+                         "f_prev": (start.f_int if start.f_int is not None else np.zeros(built.model.n_dofs))[
+                             : history.n_u]})
     case_sha = checkpoint.text_sha256(case_text)
     (out / "case.toml").write_text(case_text, encoding="utf-8")
     keep = start.count if start is not None else None
-    history = CsvWriter(out / "history.csv", HISTORY_COLUMNS, keep_steps=keep)
-    has_points = bool(built.cohesives or built.embeddeds)
-    points = CsvWriter(out / "points.csv", POINT_COLUMNS, keep_steps=keep) if case.output.points and has_points \
-        else None
-    series = None
-    if case.output.vtk:
-        from rockfrac.output.fields import step_output
-        from rockfrac.output.vtk import VtkSeries
-
-        series = VtkSeries(out / "vtk", resume=start is not None)
-        if start is not None:
-            series.truncate_after(start.count)
-    log_fh = _open_log(out, start)
-
-    def log(msg: str) -> None:
-        log_fh.write(msg + "\n")
-
-    if start is not None:
-        log(f"resumed from the checkpoint at step {start.count}")
-    if on_start is not None:
-        on_start()
-    warnings = case_warnings(built)
-    for w in warnings:
-        log(f"warning: {w}")
-        if warn is not None:
-            warn(w)
-    sol, opts = case.solver, case.output
-    stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
-    peak = dict(run_state, last=start.count if start is not None else 0)
-    stop_frac = case.loading.stop_below_peak_fraction
-
-    def on_step(info: StepInfo) -> None:
-        rec = point_rows(built, info.u)
-        row = history_row(built, info, rec)
-        history.write(row)
-        if points is not None:
-            rec["step"] = np.full(rec["x"].shape[0], info.step)
-            points.write_many(rec, rec["x"].shape[0])
-        if series is not None and info.step % opts.vtk_every == 0:
-            series.write(info.step, float(info.step), step_output(built, info.u))
-        peak["iters"] += info.newton.iterations
-        peak["last"] = info.step
-        log(f"step {info.step} [{info.stage}] lf={info.load_factor:.6f} u={row['u_axial']:.6e} "
-            f"F={row['F_axial']:.6e} iterations={info.newton.iterations}")
-        onsets = [o for g in built.embeddeds for o in g.onsets]
-        for onset in onsets[peak["onsets"]:]:
-            log(f"  bifurcation at step {info.step}: {onset.describe()}")
-        peak["onsets"] = len(onsets)
-        if progress is not None:
-            progress(row)
-        if info.stage.startswith("axial"):
-            peak["F"] = max(peak["F"], row["F_axial"])
-        if opts.checkpoint_every and info.step % opts.checkpoint_every == 0:
-            checkpoint.save(out, _position_arrays(info.position), [g.checkpoint_state() for g in built.model.groups],
-                            {k: peak[k] for k in ("F", "iters", "onsets")}, case_sha, history.digest())
-            log(f"  checkpoint at step {info.step}")
-        if info.stage.startswith("axial") and stop_frac is not None and row["F_axial"] < stop_frac * peak["F"]:
-            raise StopRun(f"force {row['F_axial']:.1f} N/m fell below {stop_frac} x peak {peak['F']:.1f} N/m")
-
-    t0 = time.perf_counter()
-    request = None
+    peaks = {"F_axial": float(counters["peak"])} if counters.get("peak", -np.inf) > -np.inf else {}
+    run = {"iters": int(counters.get("iters", 0)), "last": keep or 0}
+    log = RunLog(out / "run.log", keep, lambda: [line for g in built.model.groups for line in g.event_log()])
+    observers: list[Observer] = []
     try:
+        hist = HistoryCsv(out / "history.csv", history.columns, keep)
+        observers.append(hist)
+        if case.output.points and (built.cohesives or built.embeddeds):
+            observers.append(PointsCsv(out / "points.csv", POINT_COLUMNS, keep))
+        if case.output.vtk:
+            from rockfrac.output.fields import step_output
+
+            observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every,
+                                             lambda u: step_output(built, u), keep))
+        observers.append(log)
+        if progress is not None:
+            observers.append(Progress(progress))
+        axial_peak = {"F_axial": peaks.get("F_axial", -np.inf)}
+
+        def counts() -> dict[str, float]:
+            return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work}
+
+        observers.append(Checkpoints(out, case.output.checkpoint_every, built.model.groups, counts, hist, case_sha,
+                                     log))
+        observers.append(StopRules(built.program.stops, peaks))
+        if start is not None:
+            log(f"resumed from the checkpoint at step {start.count}")
+        for note in built.program.notes + history.notes:
+            log(note)
+        if on_start is not None:
+            on_start()
+        warnings = case_warnings(built)
+        for w in warnings:
+            log(f"warning: {w}")
+            if warn is not None:
+                warn(w)
+
+        def on_step(info: StepInfo) -> None:
+            rec = point_rows(built, info.u)
+            row = history.row(info, rec)
+            run["iters"] += info.newton.iterations
+            run["last"] = info.step
+            if "F_axial" in row and info.stage.startswith("axial"):
+                axial_peak["F_axial"] = max(axial_peak["F_axial"], row["F_axial"])
+            step = Step(info, row, rec)
+            for obs in observers:
+                obs.step(step)
+
+        sol = case.solver
+        stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
+        t0 = time.perf_counter()
         with stop_on_signals() as request:
             newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
-                                   force_scale=1e-6 * max(m.E for m in case.material_list) * case.mesh.width,
+                                   force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),
                                    should_stop=request)
             result = run_stages(built.model, built.stages, make_solver(sol.linear), newton, stepping, on_step, log,
-                                start=start, should_stop=request)
+                                start=start, should_stop=request, u0=built.program.u0, f0=built.program.f0)
     except KeyboardInterrupt:
-        log(f"end: interrupted (repeated SIGINT) after step {peak['last']}; every converged step is kept")
-        log_fh.close()
-        raise RunStopped(f"interrupted (repeated SIGINT) after step {peak['last']}; every converged step is kept in "
+        log(f"end: interrupted (repeated SIGINT) after step {run['last']}; every converged step is kept")
+        log.close()
+        raise RunStopped(f"interrupted (repeated SIGINT) after step {run['last']}; every converged step is kept in "
                          f"{out}", 130) from None
     except BaseException:
-        log_fh.close()
+        log.close()
         raise
     finally:
-        history.close()
-        if points is not None:
-            points.close()
+        for obs in observers:
+            if obs is not log:
+                obs.close()
     wall = time.perf_counter() - t0
+    peak = axial_peak["F_axial"] if built.case.loading is not None else float("nan")
     if result.stopped:
         log(f"end: stopped by {request.reason} after {result.steps} steps, {wall:.3f} s; every converged step is "
-            "kept" + (" (rockfrac run --resume continues from the last checkpoint)" if opts.checkpoint_every else ""))
-        log_fh.close()
-        return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built, warnings,
+            "kept" + (" (rockfrac run --resume continues from the last checkpoint)"
+                      if case.output.checkpoint_every else ""))
+        log.close()
+        return RunSummary(result, out, wall, peak, run["iters"], built, warnings,
                           stop_signal=request.reason, exit_code=request.exit_code)
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
-    if opts.picture:
-        from rockfrac.output.crack_map import save_crack_map
-        from rockfrac.output.fields import step_output
-        from rockfrac.output.plots import magnification
+    try:
+        if case.output.picture:
+            from rockfrac.output.crack_map import save_crack_map
+            from rockfrac.output.fields import step_output
+            from rockfrac.output.plots import magnification
 
-        mag = magnification(built, result.u)
-        cracks = save_crack_map(out / "crack_map.png", step_output(built, result.u), mag,
-                                title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}")
-        log(f"crack_map.png: step {result.steps}, {cracks.opening.size} crack segments, deformed x{mag:g}")
-    log_fh.close()
-    return RunSummary(result, out, wall, float(peak["F"]), int(peak["iters"]), built, warnings)
+            mag = magnification(built, result.u)
+            cracks = save_crack_map(out / "crack_map.png", step_output(built, result.u), mag,
+                                    title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}")
+            log(f"crack_map.png: step {result.steps}, {cracks.opening.size} crack segments, deformed x{mag:g}")
+    finally:
+        log.close()
+    return RunSummary(result, out, wall, peak, run["iters"], built, warnings)
 
+
+def _size(built: Built) -> float:
+    """The Newton force scale's length: the specimen width for the [loading] form (the paper's
+    scale), else the mesh's extent along x [m]."""
+    if built.case.loading is not None:
+        return built.case.mesh.width
+    return float(np.ptp(built.mesh.nodes[:, 0])) or 1.0

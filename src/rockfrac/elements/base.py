@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rockfrac.fem.loads import StressField
+
 #: A path-following measure g(u) and its gradient dg/du (dense, n_dofs).
 Measure = Callable[[np.ndarray], tuple[float, np.ndarray]]
 
@@ -64,11 +66,27 @@ class ElementGroup(ABC):
         """data[slots] += the constant element blocks (constant groups only)."""
         raise NotImplementedError(f"{type(self).__name__} is not a constant group")
 
+    def constant_force(self) -> np.ndarray | None:
+        """Constant part of the element vectors (n_el, nd) [N], added to f_int at every evaluation of a
+        constant group (the in-situ stress of an elastic group); None if there is none."""
+        return None
+
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Extra dofs whose equation the Dirichlet set already imposes (prescribed to zero instead)."""
         return np.zeros(0, dtype=np.int64)
 
     # -- state -------------------------------------------------------------------------------
+    def set_initial_stress(self, stress: StressField) -> None:
+        """Start from the in-situ stress field ``stress`` (points -> Voigt stresses [Pa]) instead of a
+        stress-free state: the committed state at t = 0 carries it, nothing moves or yields."""
+
+    def initial_unknowns(self, u0: np.ndarray) -> None:
+        """Write the group's extra unknowns at t = 0 (RP multipliers) into the global vector u0."""
+
+    def initial_violation(self) -> str:
+        """Where the state at t = 0 lies outside the yield surface ('' if nowhere)."""
+        return ""
+
     def begin_step(self) -> None:
         """Start a step: the trial state is the committed one."""
 
@@ -92,6 +110,14 @@ class ElementGroup(ABC):
     def committed_event(self) -> float | None:
         """The event indicator of the committed state (None: no events)."""
         return None
+
+    def event_log(self) -> list[str]:
+        """One line per event so far (e.g. "bifurcation: ..."), in order; the log prints the new ones."""
+        return []
+
+    def localized_count(self) -> int:
+        """How many cells carry an embedded discontinuity (0 for other groups)."""
+        return 0
 
     def path_measure(self, n_dofs: int) -> Measure | None:
         """The group's crack-opening measure for path following over the next step (None: none)."""

@@ -13,7 +13,6 @@ softening step predicts continued plastic flow instead of an elastic (or rigid) 
 from __future__ import annotations
 
 import numba as nb
-import numpy as np
 
 from rockfrac.laws.cohesive import (
     CHUNK,

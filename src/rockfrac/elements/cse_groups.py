@@ -10,10 +10,22 @@ import numpy as np
 
 from rockfrac import threads
 from rockfrac.elements import cse
-from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.elements.base import ElementGroup, Evaluation, Measure
+from rockfrac.elements.interface_points import InterfacePoints
+from rockfrac.fem.loads import StressField
 from rockfrac.laws import cohesive as _law
-from rockfrac.laws.cohesive_params import MODE_PLASTIC, N_STATE, S_EPSN, S_EPSS, S_MODE, S_TN, S_TT, CohesiveLaw
+from rockfrac.laws.cohesive_params import (
+    MODE_PLASTIC,
+    N_STATE,
+    S_EPSN,
+    S_EPSS,
+    S_MODE,
+    S_TN,
+    S_TT,
+    S_UPN,
+    S_UPT,
+    CohesiveLaw,
+)
 
 
 class _CohesiveGroup(ElementGroup):
@@ -21,7 +33,7 @@ class _CohesiveGroup(ElementGroup):
 
     kind = "cohesive"
     rigid = False  # RP: constrained points have no elastic jump
-    checkpoint_attrs = ("state", "tangent")
+    checkpoint_attrs = ("state", "tangent", "dissipated")
 
     def __init__(self, points: InterfacePoints, law: CohesiveLaw, *, name: str = "cohesive"):
         self.name = name
@@ -34,14 +46,43 @@ class _CohesiveGroup(ElementGroup):
         self.tangent = np.zeros((n, 2, 2))  # committed local tangent dT/d[[u]]
         self.trial_tangent = np.zeros((n, 2, 2))
         self.status = np.zeros(n, dtype=np.int64)
+        self.dissipated = 0.0  # sum of w T . d[[u^p]] over the committed steps [J]
+        self.initial_traction = np.zeros((n, 2))  # global in-situ tractions [Pa]
 
     def begin_step(self) -> None:
         self.trial[:] = self.state
         self.trial_tangent[:] = self.tangent
 
     def commit(self) -> None:
+        d_up = self.trial[:, S_UPT:S_UPN + 1] - self.state[:, S_UPT:S_UPN + 1]
+        mean = 0.5 * (self.trial[:, S_TT:S_TN + 1] + self.state[:, S_TT:S_TN + 1])
+        self.dissipated += float(np.einsum("pi,pi,p->", mean, d_up, self.points.weight))
         self.state[:] = self.trial
         self.tangent[:] = self.trial_tangent
+
+    def dissipated_energy(self) -> float:
+        return self.dissipated
+
+    def set_initial_stress(self, stress: StressField) -> None:
+        """The points start with the tractions the in-situ stress puts on the crack (consistent with
+        the bulk on both sides), in the local frame of the state; nothing has yielded."""
+        self.initial_traction = self.points.consistent_tractions(stress)
+        local = self.points.local(self.initial_traction)
+        for st in (self.state, self.trial):
+            st[:, S_TT] = local[:, 0]
+            st[:, S_TN] = local[:, 1]
+
+    def initial_violation(self) -> str:
+        s = self.state
+        f = np.array([_law.yield_function(s[i, S_TT], s[i, S_TN], s[i, S_EPSN], s[i, S_EPSS], self.p)
+                      for i in range(s.shape[0])])
+        scale = max(self.law.c_p, self.law.chi_p, 1.0)
+        bad = np.flatnonzero(f > 1e-9 * scale)
+        if not bad.size:
+            return ""
+        x = self.points.x[bad[0]]
+        return (f"the in-situ stress puts {bad.size} points of {self.name} outside the traction law's yield "
+                f"surface (first at ({x[0]:.6g}, {x[1]:.6g}): F = {f[bad[0]]:.4g} Pa > 0)")
 
     def any_plastic(self) -> bool:
         """True if a point of the committed state is plastic."""
@@ -139,6 +180,11 @@ class CohesiveEP(_CohesiveGroup):
         super().__init__(points, law, name=name)
         self.dofs = points.dofs
 
+    def elastic_energy(self, u: np.ndarray) -> float:
+        """sum w (T_t^2 / kt + T_n^2 / kn) / 2 [J]: the penalty's elastic energy."""
+        s = self.state
+        return float(0.5 * np.sum(self.points.weight * (s[:, S_TT] ** 2 / self.law.kt + s[:, S_TN] ** 2 / self.law.kn)))
+
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
         djump = pts.jumps(u) - pts.jumps(u_n)
@@ -193,6 +239,10 @@ class CohesiveRP(_CohesiveGroup):
         self.offset = offset
         lam = offset + np.arange(2 * self.points.n).reshape(-1, 2)
         self.dofs = np.hstack([self.points.dofs, lam])
+
+    def initial_unknowns(self, u0: np.ndarray) -> None:
+        """The multipliers start at the in-situ tractions (global frame)."""
+        u0[self.offset: self.offset + self.n_extra] = self.initial_traction.ravel()
 
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Multiplier dofs whose constraint the Dirichlet conditions already impose: both nodes of the

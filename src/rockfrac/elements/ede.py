@@ -16,8 +16,8 @@ import numpy as np
 
 from rockfrac import threads
 from rockfrac.elements import ede_kernel as K
-from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.base import Evaluation, Measure
+from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
@@ -133,8 +133,8 @@ def share_crack_paths(groups: list, nodes: np.ndarray) -> None:
 class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
-    checkpoint_attrs = ("state", "sigma", "e_state", "gradf", "active", "anchor", "segments", "last_event",
-                        "crack_count")
+    checkpoint_attrs = ("state", "sigma", "dissipated", "e_state", "gradf", "active", "anchor", "segments",
+                        "last_event", "crack_count")
 
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays, the onsets (a list of records) packed into arrays."""
@@ -225,9 +225,25 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self._released[:] = False
 
     def commit(self) -> None:
+        self.dissipated += self._crack_work()
         super().commit()
         self.e_state[:] = self.e_trial
         self.last_event = self._localize()
+
+    def _crack_work(self) -> float:
+        """Work of the stresses on the jump increment of the step, sum_q w <sigma> : sym(dJ x grad f_S)
+        (trapezoidal in time) [J]: the regular strain is B d - eps^p - sym(J x grad f_S), so this is
+        what the bulk gives up to the discontinuity."""
+        d_j = self.e_trial[:, K.E_J:K.E_J + 3] - self.e_state[:, K.E_J:K.E_J + 3]
+        cut = np.flatnonzero(np.any(d_j != 0.0, axis=1))
+        if not cut.size:
+            return 0.0
+        j, g = d_j[cut][:, None, :], self.gradf[cut]
+        e6 = np.concatenate([j * g, j[..., [0]] * g[..., [1]] + j[..., [1]] * g[..., [0]],
+                             j[..., [1]] * g[..., [2]] + j[..., [2]] * g[..., [1]],
+                             j[..., [0]] * g[..., [2]] + j[..., [2]] * g[..., [0]]], axis=2)
+        mean = 0.5 * (self.sigma[cut] + self.trial_sigma[cut])
+        return float(np.einsum("eqi,eqi,eq->", mean, e6, self.wdet[cut]))
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         """Cells at the global iterate u; the jumps follow d dzeta = -(r + h . dd) / k (condensation)."""
@@ -542,6 +558,12 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         out = super().cell_fields(u)
         out["localized"] = self.e_state[:, K.E_LOC].astype(np.int8)
         return out
+
+    def event_log(self) -> list[str]:
+        return [f"bifurcation: {o.describe()}" for o in self.onsets]
+
+    def localized_count(self) -> int:
+        return int(self.localized().size)
 
     def localized(self) -> np.ndarray:
         return np.flatnonzero(self.e_state[:, K.E_LOC] == 1.0)

@@ -33,7 +33,13 @@ import math
 import numba as nb
 import numpy as np
 
-from rockfrac.elements.plastic_solid import dp_element_into, element_scratch, integrate_point, n_chunks, point_strain
+from rockfrac.elements.plastic_solid import (
+    dp_element_into,
+    element_scratch,
+    integrate_point,
+    n_chunks,
+    point_strain,
+)
 from rockfrac.fem.kinematics import b_matrix
 from rockfrac.laws.drucker_prager import elastic_matrix as dp_elastic_matrix
 from rockfrac.laws.drucker_prager import moduli as dp_moduli

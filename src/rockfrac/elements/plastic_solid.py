@@ -9,9 +9,11 @@ from rockfrac import threads
 from rockfrac.elements.base import Evaluation
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.fem.kinematics import b_matrix
+from rockfrac.fem.loads import StressField
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws import drucker_prager as dp
-from rockfrac.laws.drucker_prager_params import N_STATE, S_GAMMA, S_MODE, DruckerPrager
+from rockfrac.laws.drucker_prager_params import N_STATE, S_EPS_P, S_GAMMA, S_MODE, DruckerPrager
+from rockfrac.laws.elastic import isotropic_compliance
 
 
 @nb.njit(cache=True, inline="always")
@@ -168,7 +170,7 @@ def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
 class DruckerPragerSolid(SolidGroup):
     """Nonassociative Drucker-Prager bulk; trial and committed state kept apart."""
 
-    checkpoint_attrs = ("state", "sigma")
+    checkpoint_attrs = ("state", "sigma", "dissipated")
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager, *,
                  region: str = "bulk", cell_ids: np.ndarray | None = None):
@@ -182,6 +184,29 @@ class DruckerPragerSolid(SolidGroup):
         self.trial_sigma = np.zeros_like(self.sigma)
         self.status = np.zeros(shape[0], dtype=np.int64)
         self._buffers: tuple[np.ndarray, np.ndarray] | None = None
+        self.E, self.nu = law.E, law.nu
+        self.eigenstrain = np.zeros(shape + (6,))  # -S sigma0: the in-situ stress held in eps^p (engineering)
+        self.dissipated = 0.0  # sum of w sigma : d eps^p over the committed steps [J]
+
+    def set_initial_stress(self, stress: StressField) -> None:
+        """sigma = Ce (eps - eps^p) starts at sigma0: eps^p starts at the eigenstrain -S sigma0 (reported
+        plastic strains exclude it)."""
+        sigma0 = self.initial_stress_at_points(stress)
+        self.eigenstrain[...] = -sigma0 @ isotropic_compliance(self.E, self.nu).T
+        for st in (self.state, self.trial):
+            st[..., S_EPS_P:S_EPS_P + 6] = self.eigenstrain
+        self.sigma[...] = sigma0
+        self.trial_sigma[...] = sigma0
+
+    def initial_violation(self) -> str:
+        f = yield_values(self.sigma.reshape(-1, 6), self.state.reshape(-1, N_STATE), self.p)
+        scale = max(self.law.kappa0, 1.0)
+        bad = np.flatnonzero(f > 1e-9 * scale)
+        if not bad.size:
+            return ""
+        cell = self.cell_ids[bad[0] // self.sigma.shape[1]]
+        return (f"the in-situ stress is outside the Drucker-Prager yield surface of region {self.region!r} at "
+                f"{bad.size} Gauss points (first in cell {cell}: F = {f[bad[0]]:.4g} Pa > 0)")
 
     def element_buffers(self) -> tuple[np.ndarray, np.ndarray]:
         """fe (n_el, nd), ke (n_el, nd, nd) for evaluate(): new arrays, or the group's own ones
@@ -198,8 +223,13 @@ class DruckerPragerSolid(SolidGroup):
         self.trial[:] = self.state
 
     def commit(self) -> None:
+        d_eps_p = self.trial[..., S_EPS_P:S_EPS_P + 6] - self.state[..., S_EPS_P:S_EPS_P + 6]
+        self.dissipated += float(0.5 * np.einsum("eqi,eqi,eq->", self.sigma + self.trial_sigma, d_eps_p, self.wdet))
         self.state[:] = self.trial
         self.sigma[:] = self.trial_sigma
+
+    def dissipated_energy(self) -> float:
+        return self.dissipated
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         fe, ke = self.element_buffers()
@@ -217,10 +247,19 @@ class DruckerPragerSolid(SolidGroup):
 
     def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
         out = super().cell_fields(u)
-        out["plastic_strain"] = self.state[..., 0:6].mean(axis=1)
+        out["plastic_strain"] = (self.state[..., S_EPS_P:S_EPS_P + 6] - self.eigenstrain).mean(axis=1)
         out["gamma"] = self.state[..., S_GAMMA].mean(axis=1)
         return out
 
     def plastic_fraction(self) -> float:
         """Share of Gauss points whose last committed update was plastic."""
         return float(np.mean(self.state[..., S_MODE] > 0.0))
+
+
+@nb.njit(cache=True)
+def yield_values(sigma, state, p):
+    """F at many points (n, 6) with their states (n, N_STATE) [Pa] (set-up checks)."""
+    out = np.empty(sigma.shape[0])
+    for i in range(sigma.shape[0]):
+        out[i] = dp.yield_value(sigma[i], state[i, S_GAMMA], p)
+    return out

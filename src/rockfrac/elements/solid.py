@@ -6,9 +6,16 @@ import numpy as np
 
 from rockfrac.elements.base import ElementGroup, Evaluation
 from rockfrac.fem.dofs import node_dofs
-from rockfrac.fem.kinematics import elastic_assemble, elastic_blocks, element_gradients, strains
+from rockfrac.fem.kinematics import (
+    elastic_assemble,
+    elastic_blocks,
+    element_gradients,
+    internal_forces,
+    strains,
+)
+from rockfrac.fem.loads import StressField, quadrature_points
 from rockfrac.fem.reference import ReferenceElement
-from rockfrac.laws.elastic import elasticity, isotropic_elasticity
+from rockfrac.laws.elastic import elasticity, isotropic_elasticity, strain_energy
 
 
 class SolidGeometry:
@@ -22,6 +29,7 @@ class SolidGeometry:
                  cell_ids: np.ndarray | None = None):
         self.ref = ref
         self.dim = ref.dim
+        self.nodes = nodes
         self.cells = cells
         self.name = self.region = region
         self.cell_ids = np.arange(cells.shape[0]) if cell_ids is None else np.asarray(cell_ids)
@@ -36,8 +44,25 @@ class SolidGeometry:
         return strains(self.grads, np.ascontiguousarray(u[self.dofs]))
 
 
+    def quadrature_points(self) -> np.ndarray:
+        """Physical coordinates (n_el, n_qp, dim) of the Gauss points [m]."""
+        return quadrature_points(self.nodes, self.cells, self.ref)
+
+
 class SolidGroup(SolidGeometry, ElementGroup):
-    """A bulk element group: the cells of one material region."""
+    """A bulk element group: the cells of one material region (Young's modulus E, Poisson's ratio nu)."""
+
+    E: float
+    nu: float
+
+    def initial_stress_at_points(self, stress: StressField) -> np.ndarray:
+        """The in-situ stress (n_el, n_qp, 6) [Pa] at the Gauss points."""
+        x = self.quadrature_points()
+        return np.ascontiguousarray(stress(x.reshape(-1, self.dim)).reshape(x.shape[0], x.shape[1], 6))
+
+    def elastic_energy(self, u: np.ndarray) -> float:
+        """sum w sigma . S sigma / 2 over the Gauss points [J] (per unit thickness in 2D)."""
+        return strain_energy(self.stresses(u), self.wdet, self.E, self.nu)
 
     def stresses(self, u: np.ndarray) -> np.ndarray:
         """Gauss-point stresses (n_el, n_qp, 6) [Pa] at the committed state."""
@@ -65,6 +90,14 @@ class ElasticSolid(SolidGroup):
         super().__init__(nodes, cells, ref, region=region, cell_ids=cell_ids)
         self.E, self.nu = E, nu
         self.d = elasticity(E, nu, self.dim)
+        self.sigma0: np.ndarray | None = None  # in-situ stress at the Gauss points (n_el, n_qp, 6) [Pa]
+
+    def set_initial_stress(self, stress: StressField) -> None:
+        self.sigma0 = self.initial_stress_at_points(stress)
+
+    def constant_force(self) -> np.ndarray | None:
+        """sum_q w B^T sigma0 (n_el, nd): the in-situ stress's share of f_int."""
+        return None if self.sigma0 is None else internal_forces(self.grads, self.wdet, self.sigma0)
 
     @property
     def ke(self) -> np.ndarray:
@@ -82,5 +115,6 @@ class ElasticSolid(SolidGroup):
         return Evaluation(np.einsum("eij,ej->ei", ke, u[self.dofs]), ke)
 
     def stresses(self, u: np.ndarray) -> np.ndarray:
-        """Gauss-point stresses (n_el, n_qp, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz)."""
-        return self.strains(u) @ isotropic_elasticity(self.E, self.nu).T
+        """Gauss-point stresses (n_el, n_qp, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz): sigma0 + C eps."""
+        sigma = self.strains(u) @ isotropic_elasticity(self.E, self.nu).T
+        return sigma if self.sigma0 is None else sigma + self.sigma0

@@ -209,3 +209,22 @@ def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: 
         for i in range(nd):
             for j in range(nd):
                 data[slots[e, i, j]] += ke[i, j]
+
+
+def internal_forces(grads: np.ndarray, wdet: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Element vectors sum_q w B^T sigma (n_el, nd) of Gauss-point stresses sigma (n_el, n_qp, 6)
+    [Pa] (Voigt xx, yy, zz, xy, yz, xz); NumPy, for set-up (initial stress), not the Newton loop."""
+    n_el, n_qp, n_nodes, dim = grads.shape
+    gw = grads * wdet[:, :, None, None]
+    s = sigma
+    gx, gy = gw[..., 0], gw[..., 1]
+    if dim == 2:
+        fx = np.einsum("eqa,eq->ea", gx, s[..., 0]) + np.einsum("eqa,eq->ea", gy, s[..., 3])
+        fy = np.einsum("eqa,eq->ea", gy, s[..., 1]) + np.einsum("eqa,eq->ea", gx, s[..., 3])
+        return np.stack([fx, fy], axis=2).reshape(n_el, 2 * n_nodes)
+    gz = gw[..., 2]
+    ein = lambda g, k: np.einsum("eqa,eq->ea", g, s[..., k])  # noqa: E731
+    fx = ein(gx, 0) + ein(gy, 3) + ein(gz, 5)
+    fy = ein(gy, 1) + ein(gx, 3) + ein(gz, 4)
+    fz = ein(gz, 2) + ein(gy, 4) + ein(gx, 5)
+    return np.stack([fx, fy, fz], axis=2).reshape(n_el, 3 * n_nodes)

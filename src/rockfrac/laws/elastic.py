@@ -30,3 +30,20 @@ def plane_strain_elasticity(E: float, nu: float) -> np.ndarray:
 def elasticity(E: float, nu: float, dim: int) -> np.ndarray:
     """The element's elasticity matrix: plane strain (3, 3) in 2D, (6, 6) in 3D."""
     return plane_strain_elasticity(E, nu) if dim == 2 else isotropic_elasticity(E, nu)
+
+
+def isotropic_compliance(E: float, nu: float) -> np.ndarray:
+    """Compliance matrix (6, 6) [1/Pa]: eps = S sigma, engineering shear strains (the inverse of
+    :func:`isotropic_elasticity`)."""
+    s = np.zeros((6, 6))
+    s[:3, :3] = -nu / E
+    s[[0, 1, 2], [0, 1, 2]] = 1.0 / E
+    s[[3, 4, 5], [3, 4, 5]] = 2.0 * (1.0 + nu) / E
+    return s
+
+
+def strain_energy(sigma: np.ndarray, wdet: np.ndarray, E: float, nu: float) -> float:
+    """sum over points of w sigma . S sigma / 2 [J] (per unit thickness in plane strain) for Voigt
+    stresses (..., 6) and weights (...)."""
+    eps = sigma @ isotropic_compliance(E, nu)  # S is symmetric
+    return float(0.5 * np.sum(np.sum(eps * sigma, axis=-1) * wdet))

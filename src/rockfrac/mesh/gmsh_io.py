@@ -54,9 +54,18 @@ from typing import Literal
 import numpy as np
 
 from rockfrac.errors import CaseError
-from rockfrac.files import check_file
 from rockfrac.fem.reference import ELEMENTS
+from rockfrac.files import check_file
 from rockfrac.mesh.mesh import Mesh
+from rockfrac.mesh.topology import (  # noqa: F401 (boundary_edges, boundary_faces, on_boundary: re-exported)
+    HEX_FACES,
+    boundary_edges,
+    boundary_faces,
+    cell_sides,
+    match,
+    on_boundary,
+    same_nodes,
+)
 
 __all__ = ["boundary_edges", "boundary_faces", "gmsh_session", "mesh_from_model", "on_boundary",
            "read_mesh", "require_groups"]
@@ -68,9 +77,6 @@ ALLOWED = {2: ("tri3", "quad4"), 3: ("hex8",)}
 GMSH_NAME = {v: k for k, v in CELL_TYPES.items()}
 # each cell type reversed: the mirror image of the same cell
 REVERSED = {"tri3": [0, 2, 1], "quad4": [0, 3, 2, 1], "hex8": [0, 3, 2, 1, 4, 7, 6, 5]}
-# hexahedron faces (VTK order), each with its right-hand normal pointing out of the cell
-HEX_FACES = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4],
-                      [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
 DIM_WORD = {0: "point", 1: "curve", 2: "surface", 3: "volume"}
 GroupKind = Literal["node_sets", "edge_sets", "face_sets", "regions"]
 
@@ -208,9 +214,9 @@ def _to_mesh(raw: _Raw, dim: int | None, source: str) -> Mesh:
     cells = _orient(nodes, cells, cell_type, tags, source)
     node_sets, sides = _lower_groups(raw, dim, used, source)
     mesh = Mesh(nodes=nodes, cells=cells, cell_type=cell_type, node_sets=node_sets, regions=regions)
-    cell_sides = _cell_sides(cells, dim)
+    all_sides = cell_sides(cells, dim)
     for name, group in sides.items():
-        oriented = _orient_sides(cell_sides, group, name, nodes, source)
+        oriented = _orient_sides(all_sides, group, name, nodes, source)
         (mesh.edge_sets if dim == 2 else mesh.face_sets)[name] = oriented
     problems = mesh.check()
     if problems:
@@ -244,7 +250,7 @@ def _bulk(raw: _Raw, dim: int, source: str) -> tuple[str, np.ndarray, np.ndarray
     entity = np.concatenate([np.full(len(b.tags), b.entity) for b in blocks])
     nodes = np.vstack([b.nodes for b in blocks])
     # MSH 2 files repeat an element once per physical group: keep the first copy
-    _, first = np.unique(_same_nodes(nodes), return_index=True)
+    _, first = np.unique(same_nodes(nodes), return_index=True)
     keep = np.sort(first)
     return CELL_TYPES[blocks[0].name], tags[keep], entity[keep], nodes[keep]
 
@@ -347,58 +353,14 @@ def _lower_groups(raw: _Raw, dim: int, used: np.ndarray, source: str) -> tuple[d
                                 f"its elements must be '{side}' (sides of the {dim}D cells)")
             k = pos.reshape(-1, 2 if dim == 2 else 4)
             k = np.vstack([sides[g.name], k]) if g.name in sides else k
-            sides[g.name] = k[np.sort(np.unique(_same_nodes(k), return_index=True)[1])]  # MSH 2
+            sides[g.name] = k[np.sort(np.unique(same_nodes(k), return_index=True)[1])]  # MSH 2
     return node_sets, sides
-
-
-def _cell_sides(cells: np.ndarray, dim: int) -> np.ndarray:
-    """Every side of every cell, oriented with the cell on its left (2D: (n_cells * n, 2) edges of
-    counter-clockwise cells) or outward (3D: (n_cells * 6, 4) hexahedron faces)."""
-    if dim == 2:
-        return np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
-    return cells[:, HEX_FACES].reshape(-1, 4)
-
-
-def _same_nodes(rows: np.ndarray) -> np.ndarray:
-    """An id per row of node indices (k, m), equal for rows holding the same nodes in any order.
-
-    Sorted rows are packed two columns per int64 key (a * n + b) and lexsorted: several times
-    faster than np.unique(axis=0).
-    """
-    r = np.sort(np.asarray(rows, dtype=np.int64), axis=1)
-    if len(r) == 0:
-        return np.zeros(0, np.int64)
-    n = r.max() + 1
-    keys = [r[:, j] * n + r[:, j + 1] for j in range(0, r.shape[1] - 1, 2)]
-    if r.shape[1] % 2:
-        keys.append(r[:, -1])
-    order = np.lexsort(keys[::-1])  # the first key is the primary one
-    new = np.zeros(len(r), bool)
-    new[0] = True
-    for k in keys:
-        ks = k[order]
-        new[1:] |= ks[1:] != ks[:-1]
-    ids = np.empty(len(r), np.int64)
-    ids[order] = np.cumsum(new) - 1
-    return ids
-
-
-def _match(sides: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each query row: a row of ``sides`` with the same nodes (-1 if none), and how many
-    rows of ``sides`` have those nodes (1: a boundary side; 2: an internal one)."""
-    inv = _same_nodes(np.vstack([sides, query]))
-    n_keys = inv.max() + 1 if inv.size else 0
-    count = np.bincount(inv[: len(sides)], minlength=n_keys)
-    row = np.full(n_keys, -1)
-    row[inv[: len(sides)]] = np.arange(len(sides))
-    q = inv[len(sides):]
-    return row[q], count[q]
 
 
 def _orient_sides(sides: np.ndarray, group: np.ndarray, name: str, nodes: np.ndarray,
                   source: str) -> np.ndarray:
     """The group's sides, those on the boundary oriented as their cell's side."""
-    row, count = _match(sides, group)
+    row, count = match(sides, group)
     if (row < 0).any():
         at = _point(nodes[group[row < 0][0]].mean(axis=0))
         raise CaseError(f"{source}: physical group {name!r} has {(row < 0).sum()} elements that "
@@ -408,36 +370,6 @@ def _orient_sides(sides: np.ndarray, group: np.ndarray, name: str, nodes: np.nda
     boundary = count == 1
     out[boundary] = sides[row[boundary]]
     return out
-
-
-def boundary_edges(mesh: Mesh) -> np.ndarray:
-    """The (k, 2) boundary edges of a 2D mesh, counter-clockwise around the body (outward normal
-    (dy, -dx)/L): the cell sides that belong to one cell only. Pressure loads belong here."""
-    if mesh.dim != 2:
-        raise ValueError(f"boundary_edges is for 2D meshes; this one is {mesh.dim}D "
-                         "(see boundary_faces)")
-    return _boundary(_cell_sides(mesh.cells, 2))
-
-
-def boundary_faces(mesh: Mesh) -> np.ndarray:
-    """The (k, 4) boundary faces of a hex8 mesh, right-hand normal pointing out of the body."""
-    if mesh.cell_type != "hex8":
-        raise ValueError(f"boundary_faces is for hex8 meshes; this one is {mesh.cell_type}")
-    return _boundary(_cell_sides(mesh.cells, 3))
-
-
-def _boundary(sides: np.ndarray) -> np.ndarray:
-    ids = _same_nodes(sides)
-    return sides[np.bincount(ids)[ids] == 1]
-
-
-def on_boundary(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
-    """Boolean mask: which (k, 2) edges (2D) or (k, 4) faces (3D) lie on the body's boundary."""
-    sides = np.asarray(sides, dtype=np.int64)
-    if sides.size == 0:
-        return np.zeros(len(sides), bool)
-    _, count = _match(_cell_sides(mesh.cells, mesh.dim), sides)
-    return count == 1
 
 
 KIND_WORDS = {"regions": "a region (a physical surface in 2D, volume in 3D)",

@@ -36,7 +36,12 @@ class PathSpec:
 
 @dataclass(frozen=True)
 class Stage:
-    """One ramp: ``steps`` equal increments of the load factor unless cut back."""
+    """One ramp: ``steps`` equal increments of the load factor unless cut back.
+
+    dirichlet: the dofs prescribed during the stage, dirichlet_end their values at its end (each
+    ramps from its value at the stage start: the previous stage's end value, or the displacement
+    reached if it was free). None: the model's current Dirichlet set, dirichlet_end in its order.
+    """
 
     name: str
     steps: int
@@ -44,6 +49,19 @@ class Stage:
     f_ext_end: np.ndarray  # external forces at the end of the stage
     path: PathSpec | None = None
     source: str = ""  # the input that sets this stage's loads, named in a failure ("[loading] confinement")
+    dirichlet: np.ndarray | None = None  # the stage's prescribed dofs (sorted)
+
+    def end_values(self, dofs: np.ndarray, start: np.ndarray) -> np.ndarray:
+        """Prescribed values at the end of the stage on ``dofs`` (the model's Dirichlet set in this
+        stage): the stage's own where it prescribes them, ``start`` (held) on the others (the extra
+        dofs the model prescribes because the Dirichlet set makes them redundant)."""
+        if self.dirichlet is None:
+            return self.dirichlet_end
+        pos = np.searchsorted(self.dirichlet, dofs)
+        pos = np.minimum(pos, max(self.dirichlet.shape[0] - 1, 0))
+        own = self.dirichlet.shape[0] > 0
+        hit = (self.dirichlet[pos] == dofs) if own else np.zeros(dofs.shape[0], dtype=bool)
+        return np.where(hit, self.dirichlet_end[pos] if own else 0.0, start)
 
 
 @dataclass(frozen=True)
@@ -67,6 +85,8 @@ class Position:
     stage_steps: int
     size: dict  # next increments: {"load": ..., "path": ...}
     forced: bool  # path control taken over after a failed load step
+    d_start: np.ndarray | None = None  # prescribed values at the start of the current stage
+    f_int: np.ndarray | None = None  # internal forces of the last converged step
 
 
 @dataclass
@@ -80,6 +100,8 @@ class StepInfo:
     cutbacks: int
     controlled_by: str  # "load" or "path"
     position: Position | None = None
+    f_ext: np.ndarray | None = None  # external forces of the step
+    stage_index: int = 0
 
 
 @dataclass
@@ -110,26 +132,44 @@ def run_stages(
     log: Callable[[str], None] = lambda s: None,
     start: Position | None = None,
     should_stop: Callable[[], bool] | None = None,
+    u0: np.ndarray | None = None,
+    f0: np.ndarray | None = None,
 ) -> RunResult:
-    """Run the stages in order from u = 0 (or from ``start``, with the model's committed state
-    restored to it); returns after the last stage or a clean stop.
+    """Run the stages in order from u0 (default 0) under the external forces f0 (default 0, the
+    forces in equilibrium with the initial state), or from ``start`` with the model's committed
+    state restored to it; returns after the last stage or a clean stop.
 
-    should_stop: asked before every step (and by Newton before every iteration, through its
-    options); once true the run returns with ``stopped`` set, the last step being the last converged.
+    Each stage prescribes its own Dirichlet set (``Stage.dirichlet``); a dof prescribed in the
+    previous stage starts from that stage's end value, a newly prescribed one from its current
+    displacement. should_stop: asked before every step (and by Newton before every iteration,
+    through its options); once true the run returns with ``stopped`` set, the last step being the
+    last converged.
     """
 
     def stopped(stage: Stage) -> RunResult:
         return RunResult(False, count, f"stop requested in stage {stage.name!r} after step {count}", u, stopped=True)
 
-    u = np.zeros(model.n_dofs) if start is None else start.u.copy()
-    d_start = np.zeros(model.dirichlet.shape[0])
-    f_start = np.zeros(model.n_dofs)
+    if start is not None:
+        u = start.u.copy()
+    else:
+        u = np.zeros(model.n_dofs) if u0 is None else u0.copy()
+    f_start = np.zeros(model.n_dofs) if f0 is None else f0
+    previous = np.full(model.n_dofs, np.nan)  # prescribed values at the end of the last stage (nan: free)
     count = 0 if start is None else start.count
     for index, stage in enumerate(stages):
         if start is not None and index < start.stage:
-            d_start, f_start = stage.dirichlet_end, stage.f_ext_end
+            previous = _end_map(model, stage, previous)
+            f_start = stage.f_ext_end
             continue
-        loads = Loads(d_start, stage.dirichlet_end - d_start, f_start, stage.f_ext_end - f_start)
+        if stage.dirichlet is not None:
+            model.set_dirichlet(stage.dirichlet)
+        dofs = model.dirichlet
+        if start is not None and index == start.stage and start.d_start is not None:
+            d_start = start.d_start
+        else:
+            d_start = np.where(np.isnan(previous[dofs]), u[dofs], previous[dofs])
+        d_end = stage.end_values(dofs, d_start)
+        loads = Loads(d_start, d_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
         nominal = {"load": 1.0 / stage.steps, "path": stage.path.increment if stage.path else 0.0}
         size = dict(nominal)
@@ -192,13 +232,26 @@ def run_stages(
                 size[mode] = min(nominal[mode], size[mode] * stepping.grow)
             done = lam >= 1.0 - 1e-12
             position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,
-                                0 if done else stage_steps, {} if done else dict(size), False if done else forced)
+                                0 if done else stage_steps, {} if done else dict(size), False if done else forced,
+                                None if done else d_start, res.f_int)
             try:
-                on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, step_cutbacks, mode, position))
+                on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, step_cutbacks, mode, position,
+                                 loads.forces(lam), index))
             except StopRun as stop:
                 return RunResult(True, count, str(stop), u)
             if stage.path is not None and stage_steps >= stage.path.max_steps:
                 return RunResult(False, count, f"stage {stage.name!r} reached its maximum of "
                                  f"{stage.path.max_steps} steps at load factor {lam:.6f}", u)
-        d_start, f_start = stage.dirichlet_end, stage.f_ext_end
+        previous = _end_map(model, stage, previous, d_end)
+        f_start = stage.f_ext_end
     return RunResult(True, count, "all stages completed", u)
+
+
+def _end_map(model: Model, stage: Stage, previous: np.ndarray, d_end: np.ndarray | None = None) -> np.ndarray:
+    """Prescribed values (nan: free) over all dofs at the end of ``stage``."""
+    out = np.full(model.n_dofs, np.nan)
+    if stage.dirichlet is None:
+        out[model.dirichlet] = stage.dirichlet_end if d_end is None else d_end
+    else:
+        out[stage.dirichlet] = stage.dirichlet_end
+    return out

@@ -12,7 +12,6 @@ thumb is k L / E' >= 1 / eps for a stiffness error below eps (cos(theta) <= 1).
 from __future__ import annotations
 
 import csv
-
 import math
 import time
 from dataclasses import dataclass
@@ -21,21 +20,16 @@ from pathlib import Path
 import numpy as np
 
 from rockfrac import analytic
+from rockfrac.analytic import penalty_rule  # noqa: F401 (the study's rule, kept importable here)
 from rockfrac.case.schema import parse_case
-from rockfrac.output.csvout import read_csv
 from rockfrac.files import prepare_output
+from rockfrac.output.csvout import read_csv
 from rockfrac.run import run_case
 from rockfrac.studies import table1
 
 STIFFNESSES = (1e7, 1e8, 1e9, 1e10, 1e11, 1e12)  # [Pa/m]
 W, H = 0.04, 0.08
 E_PLANE = analytic.plane_strain_modulus(table1.BULK["E"], table1.BULK["nu"])
-
-
-def penalty_rule(e_plane: float, length: float, accuracy: float = 0.01) -> float:
-    """Smallest penalty [Pa/m] whose artificial compliance stays below ``accuracy`` of the bulk's:
-    k >= E' / (accuracy L) (the rule of thumb this study supports)."""
-    return e_plane / (accuracy * length)
 
 
 @dataclass

@@ -1,0 +1,118 @@
+"""The element groups of a case: one bulk group per material region, one per cohesive set."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rockfrac.case.build_mesh import mean_cell_size
+from rockfrac.case.build_program import require
+from rockfrac.case.cohesive_section import CohesiveForm
+from rockfrac.case.materials import BulkModel
+from rockfrac.case.schema import Case
+from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
+from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
+from rockfrac.elements.plastic_solid import DruckerPragerSolid
+from rockfrac.elements.solid import ElasticSolid, SolidGroup
+from rockfrac.errors import CaseError
+from rockfrac.fem.reference import ELEMENTS
+from rockfrac.laws.cohesive_params import CohesiveLaw
+from rockfrac.laws.drucker_prager_params import DruckerPrager
+from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
+from rockfrac.mesh import Mesh
+
+AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
+
+
+def stiffest_modulus(case: Case) -> float:
+    """The largest Young's modulus of the case's materials [Pa]."""
+    return max(m.E for m in case.material_list)
+
+
+def default_augmentation(case: Case, mesh: Mesh, section) -> float:
+    """Augmentation r [Pa/m]: the bulk stiffness seen by the surface, E / h, or ten times the
+    law's steepest softening slope if that is larger (the augmented return is then unique).
+
+    The converged solution does not depend on r; it only shapes the iterations.
+    """
+    law = law_of_section(section)
+    return float(max(stiffest_modulus(case) / mean_cell_size(mesh), AUGMENTATION_SAFETY * law.softening_modulus()))
+
+
+def law_of_section(section) -> CohesiveLaw:
+    """The law's parameter object from a validated [cohesive] or [law] section."""
+    names = CohesiveLaw.__dataclass_fields__
+    return CohesiveLaw(**{k: getattr(section, k) for k in names if getattr(section, k, None) is not None})
+
+
+def drucker_prager_of(bulk) -> DruckerPrager:
+    """The Drucker-Prager parameters of a validated (resolved) [bulk] or [[materials]] section."""
+    return DruckerPrager(bulk.E, bulk.nu, bulk.beta, bulk.b, bulk.kappa0, bulk.H or 0.0)
+
+
+def embedded_law(section) -> EmbeddedLaw:
+    """The Sect. 4.1 law of a validated [embedded] section (c_p None: eq. 28 per cell)."""
+    return EmbeddedLaw(c_r=section.c_r, phi_p=section.phi_p, phi_r=section.phi_r, psi_p=section.psi_p,
+                       alpha_c=section.alpha_c, alpha_phi=section.alpha_phi, alpha_psi=section.alpha_psi,
+                       c_p=None if section.c_p == "eq28" else float(section.c_p))
+
+
+def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[object, np.ndarray, str]]:
+    """(material section, cell indices, region name) for every material; each cell exactly once."""
+    if case.bulk is not None:
+        return [(case.bulk, np.arange(mesh.cells.shape[0]), "bulk")]
+    names = [m.region for m in case.materials]
+    require(names, mesh.regions, "region", "[[materials]] region", path)
+    out = [(m, np.asarray(mesh.regions[m.region]), m.region) for m in case.materials]
+    count = np.zeros(mesh.cells.shape[0], dtype=int)
+    for _, cells, _ in out:
+        count[cells] += 1
+    if np.any(count != 1):
+        bad = np.flatnonzero(count != 1)
+        raise CaseError(f"{path}: [[materials]]: cells {bad[:5].tolist()} have {count[bad[0]]} materials; the "
+                        f"regions {names} must cover every cell once (mesh regions: {sorted(mesh.regions)})")
+    return out
+
+
+def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
+    """The CSE group of a cohesive set: EP, or RP with augmented multipliers.
+
+    RP at junctions (a node split into k >= 3 copies): the multipliers of the pairs around it are
+    statically indeterminate (circulating forces); they are taken with the least circulation, see
+    :class:`rockfrac.elements.cse_groups.CohesiveRP`.
+    """
+    law = law_of_section(section)
+    if section.form is CohesiveForm.ep:
+        return [CohesiveEP(points, law, name=name)]
+    from rockfrac.mesh.interfaces import tied_nodes
+
+    root = tied_nodes(mesh)
+    copies = np.bincount(root, minlength=mesh.n_nodes)
+    return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
+
+
+def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
+    """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks."""
+    ref = ELEMENTS[mesh.cell_type]
+    emb = case.embedded
+    ede_regions = None
+    if emb is not None and emb.regions is not None:
+        require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
+        ede_regions = set(emb.regions)
+    groups = []
+    for section, cells, region in material_cells(case, mesh, path):
+        sub = mesh.cells[cells]
+        dp = section.model is BulkModel.drucker_prager
+        if emb is not None and dp and (ede_regions is None or region in ede_regions):
+            g: SolidGroup = EmbeddedDruckerPrager(
+                mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
+                plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks, region=region, cell_ids=cells)
+        elif dp:
+            g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section), region=region, cell_ids=cells)
+        else:
+            g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu, region=region, cell_ids=cells)
+        groups.append(g)
+
+    share_crack_paths([g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2], mesh.nodes)
+    return groups
+
+

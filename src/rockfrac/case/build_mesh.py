@@ -1,0 +1,100 @@
+"""The mesh of a case: generated or read, checked, and split where cohesive surfaces go."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rockfrac.case.build_program import require
+from rockfrac.case.cohesive_section import Placement
+from rockfrac.case.mesh_section import ElementType, MeshKind
+from rockfrac.case.schema import Case
+from rockfrac.errors import CaseError
+from rockfrac.mesh import Mesh, cracked_specimen, hex_specimen
+
+
+def mean_cell_size(mesh: Mesh) -> float:
+    """sqrt of the mean cell area (2D) [m]."""
+    x = mesh.nodes[mesh.cells][..., :2]
+    area = 0.5 * np.abs(np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, 1) - np.roll(x[:, :, 0], -1, 1) * x[:, :, 1], 1))
+    return float(np.sqrt(area.mean()))
+
+
+def make_mesh(case: Case, path: str = "<case>") -> Mesh:
+    """The bulk mesh of the case (before any cohesive insertion), checked."""
+    m = case.mesh.resolved()
+    try:
+        if m.kind is MeshKind.gmsh:
+            from rockfrac.mesh.gmsh_io import read_mesh
+
+            try:
+                mesh = read_mesh(m.file, dim=None)
+            except CaseError as err:
+                raise CaseError(f"{path}: [mesh] file: {err}") from None
+        elif m.kind is MeshKind.grains:
+            from rockfrac.mesh.grains import grain_specimen
+
+            mesh = grain_specimen(m.width, m.height, n_grains=m.n_grains, radius=(m.radius_min, m.radius_max),
+                                  seed=m.seed, element_size=m.element_size, element=m.element.value)
+        elif m.kind is MeshKind.block:
+            from rockfrac.mesh.grains import block_with_inclusion
+
+            mesh = block_with_inclusion(m.width, m.height, m.nx, m.ny, inclusion=m.inclusion,
+                                        element=m.element.value)
+        elif m.element is ElementType.hex8:
+            mesh = hex_specimen(m.width, m.height, m.thickness, m.nx, m.ny, m.nz)
+        else:
+            try:
+                mesh = cracked_specimen(m.width, m.height, m.crack_angle or 0.0, m.nx, m.ny, crack=m.crack)
+            except ValueError as err:
+                raise CaseError(f"{path}: [mesh] crack_angle: {err}") from None
+    except CaseError:
+        raise
+    except (ValueError, RuntimeError) as err:
+        raise CaseError(f"{path}: [mesh]: {err}") from None
+    problems = mesh.check()
+    if problems:
+        raise CaseError(f"{path}: [mesh]: " + "; ".join(problems))
+    return mesh
+
+
+def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndarray]]:
+    """Split the mesh along every cohesive set's edges; returns the new mesh and each set's cells."""
+    sets = case.cohesive_sets
+    if not sets:
+        return mesh, []
+    if sets[0].where is Placement.crack:  # the specimen carries its crack already
+        return mesh, [np.arange(mesh.interfaces.shape[0])]
+    from rockfrac.mesh import interfaces as itf
+
+    edges, cells, _ = itf.internal_edges(mesh)
+    chosen, minus = [], []
+    for k, c in enumerate(sets):
+        key = f"[cohesive{'' if len(sets) == 1 else f' {k + 1}'}]"
+        if c.where in (Placement.between, Placement.within):
+            require(c.regions, mesh.regions, "region", f"{key} regions", path)
+        if c.where is Placement.between:
+            mask = itf.edges_between(mesh, *c.regions)
+        elif c.where is Placement.within:
+            mask = itf.edges_within(mesh, c.regions[0])
+        elif c.where is Placement.curves:
+            require(c.curves, mesh.edge_sets, "curve group", f"{key} curves", path)
+            mask = itf.edges_on(mesh, np.vstack([mesh.edge_sets[n] for n in c.curves]))
+        else:
+            mask = itf.all_edges(mesh)
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal edge of the mesh")
+        chosen.append(idx)
+        if c.where is Placement.between:  # the first region is the minus side
+            minus.append(itf.minus_side(mesh, idx, c.regions[0]))
+        else:
+            minus.append(cells[idx, 0])
+    flat = np.concatenate(chosen)
+    if np.unique(flat).size != flat.size:
+        raise CaseError(f"{path}: [cohesive]: two cohesive sets share edges; each edge can carry one surface")
+    n0 = mesh.interfaces.shape[0]
+    split = itf.insert_interfaces(mesh, flat, minus_cells=np.concatenate(minus))
+    bounds = np.cumsum([0] + [c.size for c in chosen]) + n0
+    return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+

@@ -1,0 +1,425 @@
+"""The loading program of a case as engine stages: prescribed dofs and forces per stage, the state
+at t = 0 (in-situ stress, gravity) and the stop rules.
+
+Every group a stage names is checked against the mesh here, before any step, with the stage and
+key in the message. The paper's short form [loading] is expanded into two or more stages first
+(:func:`expand_loading`), so both forms run through the same code.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rockfrac.case.loading import Control
+from rockfrac.case.program import InitialStressSection, StageSection, StopSection
+from rockfrac.case.schema import Case
+from rockfrac.elements.base import ElementGroup
+from rockfrac.errors import CaseError
+from rockfrac.fem.conditions import edge_pressure, face_pressure
+from rockfrac.fem.loads import (
+    StressField,
+    body_force,
+    edge_stress_traction,
+    edge_traction,
+    face_stress_traction,
+    face_traction,
+    nodal_volumes,
+)
+from rockfrac.mesh.mesh import Mesh
+from rockfrac.mesh.topology import cell_sides, match, on_boundary, outer_boundary
+from rockfrac.model import Model
+from rockfrac.output.history import Monitor
+from rockfrac.solve.stepping import PathSpec, Stage
+
+COMPONENTS = {"x": 0, "y": 1, "z": 2}
+EQUILIBRIUM_TOL = 1e-8  # unbalanced nodal force at t = 0, relative to the largest initial load
+
+
+@dataclass
+class Program:
+    """Engine stages, the state at t = 0 and each stage's stop rule (None: none)."""
+
+    stages: list[Stage]
+    u0: np.ndarray
+    f0: np.ndarray
+    stops: list[StopSection | None]
+    sections: list[StageSection]
+    aliases: bool = False  # the paper's u_axial, F_axial columns (the [loading] form)
+    notes: list[str] = field(default_factory=list)  # what run.log should say about the set-up
+
+
+def require(names, available, what: str, key: str, path: str) -> None:
+    """CaseError naming the key if a name is not among ``available``."""
+    missing = [n for n in names if n not in available]
+    if missing:
+        raise CaseError(f"{path}: {key}: {what} {', '.join(repr(n) for n in missing)} not in the mesh; "
+                        f"its {what}s: {', '.join(sorted(available)) or '(none)'}")
+
+
+def expand_loading(case: Case, mesh: Mesh, path: str) -> list[tuple[StageSection, str]]:
+    """[loading] as stages: confinement (supports held, pressure on the sides), then one axial stage
+    per target (the top shortened); each with the source a failure names."""
+    load = case.loading
+    for key in ("support", "pin", "axial"):
+        require([getattr(load, key)], mesh.node_sets, "node group", f"[loading] {key}", path)
+    held = {load.support: {"y": 0.0}, load.pin: {"x": 0.0}, load.axial: {"y": 0.0}}
+    if mesh.dim == 3:  # plane strain: both out-of-plane faces held in their normal direction
+        require(["back", "front"], mesh.node_sets, "node group",
+                "[mesh] (3D plane strain needs the out-of-plane faces)", path)
+        held.update({"back": {"z": 0.0}, "front": {"z": 0.0}})
+    displacement: dict[str, dict] = {}
+    for group, comps in held.items():
+        displacement.setdefault(group, {}).update(comps)
+    sides = mesh.edge_sets if mesh.dim == 2 else mesh.face_sets
+    require(load.pressure, sides, "boundary group", "[loading] pressure", path)
+    out = [(StageSection.model_construct(name="confinement", steps=load.confinement_steps, control="load",
+                                         displacement=displacement,
+                                         pressure={p: load.confinement for p in load.pressure}, traction={},
+                                         gravity=None, in_situ={}, stop=None, path_increment=None, max_steps=None),
+            f"{path}: [loading] confinement = {load.confinement:g} Pa")]
+    stop = (StopSection.model_construct(quantity="F_axial", below_peak_fraction=load.stop_below_peak_fraction)
+            if load.stop_below_peak_fraction is not None else None)
+    path_control = load.control is Control.path
+    for k, target in enumerate(load.axial_targets):
+        name = "axial" if k == 0 else f"axial {k + 1}"
+        key = "axial_displacement" if len(load.axial_targets) == 1 else f"axial_displacement[{k + 1}]"
+        out.append((StageSection.model_construct(
+            name=name, steps=load.axial_steps, control="path" if path_control else "load",
+            path_increment=load.path_increment, max_steps=load.max_steps,
+            displacement={load.axial: {"y": -target}}, pressure={}, traction={}, gravity=None, in_situ={},
+            stop=stop), f"{path}: [loading] {key} = {target:g} m"))
+    return out
+
+
+def _sides(mesh: Mesh, name: str, key: str, path: str) -> np.ndarray:
+    """The boundary edges (2D) or faces (3D) of a group, checked to be on the boundary."""
+    sets = mesh.edge_sets if mesh.dim == 2 else mesh.face_sets
+    require([name], sets, "boundary group", key, path)
+    sides = sets[name]
+    inside = ~on_boundary(mesh, sides)
+    if inside.any():
+        raise CaseError(f"{path}: {key}: {name!r} is not (all) on the boundary ({int(inside.sum())} of its "
+                        f"{len(sides)} sides are inside the body); loads act on boundary edges or faces")
+    return sides
+
+
+def _vector(values, dim: int, key: str, path: str) -> np.ndarray:
+    v = np.asarray(values, dtype=float)
+    if v.shape != (dim,):
+        raise CaseError(f"{path}: {key}: {v.size} components; this {dim}D mesh needs {dim}")
+    return v
+
+
+class InitialStress:
+    """The in-situ stress of the case: one linear field per set of regions (sigma0 = stress + (e -
+    datum) gradient, e the elevation: y in 2D, z in 3D)."""
+
+    def __init__(self, specs: list[InitialStressSection], regions: list[str], dim: int, path: str):
+        self.dim = dim
+        self.of_region: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
+        for k, spec in enumerate(specs):
+            key = f"[initial] stress[{k + 1}]"
+            names = spec.regions if spec.regions is not None else regions
+            require(names, regions, "region", f"{key} regions", path)
+            s = np.zeros(6)
+            g = np.zeros(6)
+            n = len(spec.stress)
+            if dim == 3 and n != 6:
+                raise CaseError(f"{path}: {key} stress: a 3D mesh needs all six components (sxx, syy, szz, sxy, syz, sxz)")
+            s[[0, 1, 2, 3, 4, 5][:n]] = spec.stress
+            if spec.gradient is not None:
+                g[:n] = spec.gradient
+            for r in names:
+                if r in self.of_region:
+                    raise CaseError(f"{path}: {key} regions: region {r!r} already has an in-situ stress")
+                self.of_region[r] = (s, g, spec.datum)
+
+    def field(self, region: str) -> StressField | None:
+        """The stress field of a region (None: stress-free)."""
+        if region not in self.of_region:
+            return None
+        s, g, datum = self.of_region[region]
+        axis = 1 if self.dim == 2 else 2
+
+        def stress(x: np.ndarray) -> np.ndarray:
+            return s[None, :] + (x[:, axis] - datum)[:, None] * g[None, :]
+
+        return stress
+
+    def scale(self) -> float:
+        """The largest stress magnitude at the datum [Pa] (for tolerances)."""
+        return max((float(np.abs(s).max()) for s, _, _ in self.of_region.values()), default=0.0)
+
+
+def _cell_regions(n_cells: int, bulks: list) -> np.ndarray:
+    out = np.full(n_cells, -1)
+    for k, g in enumerate(bulks):
+        out[g.cell_ids] = k
+    return out
+
+
+def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
+    """The cell each boundary side belongs to."""
+    all_sides = cell_sides(mesh.cells, mesh.dim)
+    row, _ = match(all_sides, sides)
+    per_cell = all_sides.shape[0] // mesh.cells.shape[0]
+    return row // per_cell
+
+
+def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
+                   factor: np.ndarray) -> np.ndarray:
+    """Nodal forces of sigma0 . n on boundary sides (each side with the field of its cell's region),
+    times a factor per side."""
+    f = np.zeros(mesh.dim * mesh.n_nodes)
+    if sides.size == 0:
+        return f
+    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
+    for k, g in enumerate(bulks):
+        field_ = initial.field(g.region)
+        on = region_of == k
+        if field_ is None or not on.any():
+            continue
+        if mesh.dim == 2:
+            edge_stress_traction(mesh.nodes, sides[on], field_, f, factor[on])
+        else:
+            face_stress_traction(mesh.nodes, sides[on], field_, f, factor[on])
+    return f
+
+
+def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress) -> None:
+    """Put the in-situ stress into the groups: bulk regions their own field, cohesive sets the field
+    of the region on their minus side (the first bulk group whose cells hold their minus nodes)."""
+    node_group = np.full(mesh.n_nodes, -1)
+    for k, g in enumerate(bulks):
+        field_ = initial.field(g.region)
+        if field_ is not None:
+            g.set_initial_stress(field_)
+        node_group[g.cells.ravel()] = k
+    for c in cohesives:
+        groups = set(node_group[c.points.minus].tolist())
+        fields = {bulks[k].region: initial.field(bulks[k].region) for k in groups if k >= 0}
+        specs = {initial.of_region[r][0].tobytes() + initial.of_region[r][1].tobytes()
+                 for r, fl in fields.items() if fl is not None}
+        if len(specs) > 1:
+            raise CaseError(f"[initial] stress: the cohesive set {c.name!r} borders regions with different in-situ "
+                            f"stresses ({', '.join(sorted(fields))}); give them one field")
+        live = [fl for fl in fields.values() if fl is not None]
+        if live:
+            c.set_initial_stress(live[0])
+
+
+def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, g: np.ndarray, key: str,
+                   path: str) -> np.ndarray:
+    """Nodal forces of gravity g on every region (density x g), CaseError if a region has no density."""
+    f = np.zeros(mesh.dim * mesh.n_nodes)
+    if not np.any(g):
+        return f
+    for b in bulks:
+        rho = densities.get(b.region)
+        if rho is None:
+            raise CaseError(f"{path}: {key}: region {b.region!r} has no density (give density [kg/m^3] in its "
+                            "[bulk] or [[materials]] section)")
+        body_force(b.cells, nodal_volumes(mesh.nodes, b.cells, b.ref, b.wdet), rho, g, f)
+    return f
+
+
+def path_spec(stage: StageSection, surfaces: list[ElementGroup], n_dofs: int, key: str,
+              path: str) -> PathSpec | None:
+    """Path following on the discontinuities' jumps (cohesive pairs or embedded cells)."""
+    if stage.control != "path":
+        return None
+    if not surfaces:
+        raise CaseError(f"{path}: {key} control = 'path' needs a cohesive surface or an [embedded] section")
+    if stage.path_increment is None or stage.max_steps is None:
+        raise CaseError(f"{path}: {key}: path_increment and max_steps are not resolved")
+
+    def measure():
+        parts = [g.path_measure(n_dofs) for g in surfaces]
+        if len(parts) == 1:
+            return parts[0]
+        w = np.array([g.path_weight() for g in surfaces], dtype=float)
+        w /= w.sum()
+
+        def combined(u: np.ndarray) -> tuple[float, np.ndarray]:
+            values, grads = zip(*(m(u) for m in parts))
+            return float(np.dot(w, values)), sum(wi * gi for wi, gi in zip(w, grads))
+
+        return combined
+
+    return PathSpec(measure, stage.path_increment, lambda: any(g.path_active() for g in surfaces),
+                    stage.max_steps)
+
+
+def _source(stage: StageSection, key: str, path: str) -> str:
+    parts = [f"displacement {g}.{c} = {v if isinstance(v, str) else format(v, 'g')}"
+             for g, comps in stage.displacement.items() for c, v in comps.items()]
+    parts += [f"pressure {g} = {v:g} Pa" for g, v in stage.pressure.items()]
+    parts += [f"traction {g} = {list(v)} Pa" for g, v in stage.traction.items()]
+    if stage.gravity is not None:
+        parts.append(f"gravity = {list(stage.gravity)} m/s^2")
+    parts += [f"in_situ {g} = {v:g}" for g, v in stage.in_situ.items()]
+    return f"{path}: {key} ({'; '.join(parts) or 'held loads'})"
+
+
+def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: list, path: str) -> Program:
+    """The engine stages of the case's loading program and its state at t = 0."""
+    dim = mesh.dim
+    surfaces = cohesives or [g for g in bulks if g.kind == "embedded"]
+    if case.bulk is not None:
+        densities = {b.region: case.bulk.density for b in bulks}
+    else:
+        densities = {m.region: m.density for m in case.materials or []}
+    if case.loading is not None:
+        pairs = expand_loading(case, mesh, path)
+        keys = ["[loading]"] * len(pairs)
+    else:
+        pairs = []
+        keys = []
+        for k, st in enumerate(case.stage_sections):
+            key = f"[stages {k + 1}]"
+            pairs.append((st, _source(st, key, path)))
+            keys.append(key)
+    # the state at t = 0
+    notes = []
+    initial = None
+    outer = outer_boundary(mesh)
+    in_situ_factor = np.ones(outer.shape[0])
+    g0 = np.zeros(dim)
+    if case.initial is not None:
+        if case.initial.gravity is not None:
+            g0 = _vector(case.initial.gravity, dim, "[initial] gravity", path)
+        if case.initial.stress:
+            initial = InitialStress(case.initial.stress, [b.region for b in bulks], dim, path)
+            try:
+                set_initial_stress(mesh, bulks, cohesives, initial)
+            except CaseError as err:
+                raise CaseError(f"{path}: {err}") from None
+            model.update_constant_force()
+    f_gravity0 = gravity_forces(bulks, densities, mesh, g0, "[initial] gravity", path)
+    f_situ = in_situ_forces(mesh, bulks, initial, outer, in_situ_factor) if initial is not None else 0.0
+    f0 = f_gravity0 + f_situ
+    # the stages
+    presc: dict[int, float] = {}
+    pressure: dict[str, float] = {}
+    traction: dict[str, np.ndarray] = {}
+    gravity = g0.copy()
+    stages, stops, sections = [], [], []
+    for k, ((st, source), key) in enumerate(zip(pairs, keys)):
+        for group, comps in st.displacement.items():
+            require([group], mesh.node_sets, "node group", f"{key} displacement", path)
+            nodes = mesh.node_sets[group]
+            for comp, value in comps.items():
+                a = COMPONENTS[comp]
+                if a >= dim:
+                    raise CaseError(f"{path}: {key} displacement.{group}.{comp}: a {dim}D mesh has components "
+                                    f"{', '.join(list(COMPONENTS)[:dim])}")
+                for d in (dim * nodes + a).tolist():
+                    if value == "free":
+                        presc.pop(d, None)
+                    else:
+                        presc[d] = float(value)
+        for group, p in st.pressure.items():
+            _sides(mesh, group, f"{key} pressure", path)
+            traction.pop(group, None)
+            pressure[group] = float(p)
+        for group, t in st.traction.items():
+            _sides(mesh, group, f"{key} traction", path)
+            pressure.pop(group, None)
+            traction[group] = _vector(t, dim, f"{key} traction.{group}", path)
+        if st.gravity is not None:
+            gravity = _vector(st.gravity, dim, f"{key} gravity", path)
+        for group, factor in st.in_situ.items():
+            if initial is None:
+                raise CaseError(f"{path}: {key} in_situ: there is no in-situ stress ([initial] stress)")
+            sides = _sides(mesh, group, f"{key} in_situ", path)
+            row, count = match(outer, sides)
+            if (count == 0).any():
+                raise CaseError(f"{path}: {key} in_situ.{group}: not on the outer boundary (a crack face?)")
+            in_situ_factor[row] = factor
+        f_end = np.zeros(dim * mesh.n_nodes)
+        for group, p in pressure.items():
+            sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
+            (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
+        for group, t in traction.items():
+            sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
+            (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, t, f_end)
+        f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path)
+        if initial is not None:
+            f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor)
+        f_full = np.zeros(model.n_dofs)
+        f_full[: f_end.shape[0]] = f_end
+        dofs = np.array(sorted(presc), dtype=np.int64)
+        values = np.array([presc[d] for d in dofs.tolist()])
+        name = st.name or f"stage {k + 1}"
+        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, model.n_dofs, key, path),
+                            source=source, dirichlet=dofs))
+        stops.append(st.stop)
+        sections.append(st)
+    u0 = model.initial_unknowns()
+    f0_full = np.zeros(model.n_dofs)
+    f0_full[: np.size(f0)] = f0
+    if initial is not None or np.any(g0):
+        _check_equilibrium(model, stages[0], u0, f0_full, initial, path)
+        notes.append("initial state: in equilibrium with the in-situ tractions"
+                     + (" and gravity" if np.any(g0) else ""))
+    if initial is not None:
+        for g in model.groups:
+            why = g.initial_violation()
+            if why:
+                raise CaseError(f"{path}: [initial] stress: {why}")
+    return Program(stages, u0, f0_full, stops, sections, aliases=case.loading is not None, notes=notes)
+
+
+def _check_equilibrium(model: Model, first: Stage, u0: np.ndarray, f0: np.ndarray, initial: InitialStress | None,
+                       path: str) -> None:
+    """The state at t = 0 must be in equilibrium on the dofs the first stage leaves free."""
+    if first.dirichlet is not None:
+        model.set_dirichlet(first.dirichlet)
+    model.begin_step()
+    asm = model.assemble(u0, u0, f0)
+    r = asm.residual[model.free]
+    scale = max(float(np.abs(f0).max(initial=0.0)), 1e-30)
+    worst = float(np.abs(r).max(initial=0.0))
+    if worst > EQUILIBRIUM_TOL * scale:
+        i = int(model.free[np.argmax(np.abs(r))])
+        raise CaseError(f"{path}: [initial]: the state at t = 0 is not in equilibrium: an unbalanced force of "
+                        f"{worst:.4g} N/m at dof {i} (the largest initial load is {scale:.4g} N/m); an in-situ stress "
+                        "that varies with elevation needs the gravity that balances it (d sigma_yy / dy = rho g_y "
+                        "with [initial] gravity and the regions' density), and it must be continuous across "
+                        "regions where they touch")
+
+
+def _nearest(nodes: np.ndarray, x: list[float], key: str, path: str) -> tuple[int, float]:
+    p = np.asarray(x, dtype=float)
+    if p.shape[0] != nodes.shape[1]:
+        raise CaseError(f"{path}: {key}: {p.shape[0]} coordinates; this {nodes.shape[1]}D mesh needs {nodes.shape[1]}")
+    d = np.linalg.norm(nodes - p[None, :], axis=1)
+    i = int(np.argmin(d))
+    return i, float(d[i])
+
+
+def resolve_monitors(case: Case, mesh: Mesh, path: str) -> list[Monitor]:
+    """The [[monitors]] on the mesh: nearest nodes of points, node groups of openings."""
+    out = []
+    axes = "xyz"[: mesh.dim]
+    for k, m in enumerate(case.monitors or []):
+        key = f"[monitors {k + 1}]"
+        if m.kind == "displacement":
+            i, d = _nearest(mesh.nodes, m.at, f"{key} at", path)
+            out.append(Monitor(m.name, [f"{m.name}_{a}" for a in axes], (np.array([i]),), None,
+                               f"monitor {m.name}: node {i}, {d:.3g} m from the point asked for"))
+        elif m.points is not None:
+            (i, d1), (j, d2) = (_nearest(mesh.nodes, p, f"{key} points", path) for p in m.points)
+            e = np.asarray(m.points[1], float) - np.asarray(m.points[0], float)
+            out.append(Monitor(m.name, [m.name], (np.array([i]), np.array([j])), e / np.linalg.norm(e),
+                               f"monitor {m.name}: opening of node {j} against node {i} ({d1:.3g} and {d2:.3g} m "
+                               "from the points asked for)"))
+        else:
+            require(m.groups, mesh.node_sets, "node group", f"{key} groups", path)
+            e = _vector(m.direction, mesh.dim, f"{key} direction", path)
+            out.append(Monitor(m.name, [m.name], tuple(np.asarray(mesh.node_sets[g]) for g in m.groups),
+                               e / np.linalg.norm(e), f"monitor {m.name}: opening of {m.groups[1]!r} against "
+                               f"{m.groups[0]!r} along {list(e / np.linalg.norm(e))}"))
+    return out

@@ -1,0 +1,97 @@
+"""[bulk], [[materials]] and [embedded]: the bulk laws and the embedded discontinuities."""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from rockfrac.case.types import Angle, Coefficient, Count, Hardening, Modulus, Rate, Strength
+from rockfrac.case.types import Section as _Section
+
+
+class BulkModel(str, Enum):
+    elastic = "elastic"
+    drucker_prager = "drucker_prager"
+
+
+class BulkSection(_Section):
+    """Bulk: linear isotropic elasticity, or nonassociative Drucker-Prager with linear hardening.
+
+    F = sqrt(3/2)|s| + sqrt(3)(beta p - kappa0 - H gamma), G = sqrt(3/2)|s| + sqrt(3) b p,
+    p = tr(sigma)/3 tension positive (rockfrac.laws.drucker_prager).
+    """
+
+    model: BulkModel = Field(BulkModel.elastic, strict=False, description="'elastic' or 'drucker_prager'")
+    E: Modulus = Field(description="Young's modulus [Pa]")
+    nu: float = Field(gt=-1.0, lt=0.5, description="Poisson's ratio")
+    beta: Coefficient | None = Field(None, description="drucker_prager: friction coefficient of F [-]")
+    b: Coefficient | None = Field(None, description="drucker_prager: dilatancy coefficient of G [-]")
+    kappa0: Strength | None = Field(None, description="drucker_prager: initial strength kappa0 [Pa]")
+    H: Hardening | None = Field(None, description="drucker_prager: hardening modulus [Pa] (default 0; < 0 softens)")
+    density: float | None = Field(None, ge=0, le=1e5, description="mass density [kg/m^3] (needed with gravity)")
+
+    @model_validator(mode="after")
+    def _model_keys(self) -> BulkSection:
+        dp_keys = ("beta", "b", "kappa0", "H")
+        if self.model is BulkModel.elastic:
+            given = [k for k in dp_keys if getattr(self, k) is not None]
+            if given:
+                raise ValueError(f"{', '.join(given)} only apply to model = 'drucker_prager'")
+            return self
+        missing = [k for k in ("beta", "b", "kappa0") if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"model = 'drucker_prager' needs {', '.join(missing)}")
+        from rockfrac.laws.drucker_prager_params import DruckerPrager
+
+        DruckerPrager(self.E, self.nu, self.beta, self.b, self.kappa0, self.H or 0.0)  # admissible? (ValueError)
+        return self
+
+    def resolved(self) -> BulkSection:
+        if self.model is BulkModel.drucker_prager and self.H is None:
+            return self.model_copy(update={"H": 0.0})
+        return self
+
+
+class MaterialSection(BulkSection):
+    """A bulk material for the cells of one mesh region (several materials per model)."""
+
+    region: str = Field(min_length=1, max_length=200, description="the mesh region (physical group) of this material")
+
+
+class BandChoice(str, Enum):
+    positive = "positive"
+    negative = "negative"
+
+
+class EmbeddedSection(_Section):
+    """Embedded strong discontinuity (EDE, paper Sect. 4.1, 5): where det A = 0 is first reached, a
+    surface through the element centre with the Mohr-Coulomb law and exponential softening in gamma."""
+
+    c_p: Strength | Literal["eq28"] = Field(
+        "eq28", description="peak cohesion [Pa], or 'eq28': from the stress at bifurcation (paper eq. 28)")
+    c_r: Strength = Field(description="residual cohesion [Pa]")
+    phi_p: Angle = Field(description="peak friction angle [rad]")
+    phi_r: Angle = Field(description="residual friction angle [rad]")
+    psi_p: Angle = Field(description="peak dilation angle [rad]")
+    alpha_c: Rate = Field(description="softening rate of c [1/m]")
+    alpha_phi: Rate = Field(description="softening rate of phi [1/m]")
+    alpha_psi: Rate = Field(description="softening rate of psi [1/m]")
+    band: BandChoice = Field(BandChoice.positive, strict=False, description="which conjugate band: 'positive' (band "
+                             "angle from horizontal in (0, 90) deg) or 'negative' ((-90, 0) deg)")
+    tracking: Literal["none", "local"] = Field(
+        "none", description="'none': each cell's surface through its centroid (the paper's Tahoe element); "
+        "'local': a cell next to a cut cell continues that cell's surface (a continuous crack path)")
+    regions: list[str] | None = Field(None, description="regions that may localize (default: every "
+                                      "drucker_prager region)")
+    max_cracks: Count = Field(1, description="tracking = 'local': most cracks started; further cuts "
+                            "continue them from their tips")
+
+    @model_validator(mode="after")
+    def _residual_below_peak(self) -> EmbeddedSection:
+        if self.phi_r > self.phi_p or (self.c_p != "eq28" and self.c_r > self.c_p):
+            raise ValueError("residual values (c_r, phi_r) must not exceed the peak ones")
+        if self.c_p != "eq28" and self.c_p <= 0:
+            raise ValueError("c_p must be > 0 or 'eq28'")
+        return self

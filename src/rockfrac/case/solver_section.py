@@ -1,0 +1,48 @@
+"""[solver] and [output]: Newton, stepping and linear solver options; what a run writes."""
+
+from __future__ import annotations
+
+from enum import Enum
+
+from pydantic import Field, model_validator
+
+from rockfrac.case.types import Count
+from rockfrac.case.types import Section as _Section
+
+
+class LinearSolverName(str, Enum):
+    auto = "auto"
+    superlu = "superlu"
+    pardiso = "pardiso"
+    mumps = "mumps"
+    gmres_amg = "gmres-amg"
+
+
+class SolverSection(_Section):
+    linear: LinearSolverName = Field(LinearSolverName.auto, strict=False,
+                                     description="'auto' (the fastest installed: pardiso, mumps, superlu), "
+                                     "'superlu' (SciPy), 'pardiso' (needs pypardiso), 'mumps' (needs "
+                                     "python-mumps) or 'gmres-amg' (iterative, needs pyamg)")
+
+    @model_validator(mode="after")
+    def _solver_installed(self) -> SolverSection:
+        from rockfrac.solve.linear import available
+
+        if self.linear.value != "auto" and self.linear.value not in available():
+            raise ValueError(f"linear = {self.linear.value!r} is not installed here; available: {available()}")
+        return self
+    max_iterations: int = Field(25, ge=1, le=1000, description="most Newton iterations of a step")
+    tol_residual: float = Field(1e-8, ge=1e-14, le=1e-2, description="relative residual norm to converge")
+    tol_energy: float = Field(1e-10, ge=1e-20, le=1e-2, description="relative energy norm to converge")
+    cutback: float = Field(0.5, ge=0.01, le=0.9, description="factor on the step after a failed one")
+    min_step: float = Field(1e-4, ge=1e-12, le=1, description="smallest increment, fraction of the nominal")
+
+
+class OutputSection(_Section):
+    points: bool = Field(True, description="write points.csv (per integration point and step)")
+    vtk: bool = Field(False, description="write a ParaView time series (vtk/results.pvd)")
+    vtk_every: Count = Field(1, description="write every n-th converged step to the series")
+    checkpoint_every: int = Field(0, ge=0, le=10_000_000, description="save a checkpoint every n converged steps (0: never); "
+                                  "rockfrac run --resume continues from the last one")
+    picture: bool = Field(True, description="draw crack_map.png: the deformed mesh at the last converged step, "
+                          "coloured by the plastic multiplier, with the yielded cracks coloured by their jump")

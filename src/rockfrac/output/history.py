@@ -1,0 +1,159 @@
+"""The quantities of history.csv: one row per converged step.
+
+- ``step, stage, control, load_factor, time`` (time = stage index + load factor), Newton iterations
+  and cutbacks;
+- per named node group G and component c: the mean displacement ``u_G_c`` [m] and the reaction
+  ``R_G_c`` = sum over the group of f_int - f_ext [N/m per unit thickness in 2D; N in 3D; the
+  plane-strain hex8 per unit thickness]: the force the supports (or the loads) apply to the body;
+- the monitors ([[monitors]]): ``<name>_x, <name>_y`` of a point, ``<name>`` of an opening;
+- energies [J, per unit thickness as the forces]: ``W_external`` (work of all forces on the body,
+  trapezoidal over the steps), ``E_elastic`` (stored in the bulk and in the EP penalties),
+  ``D_dissipated`` (bulk plasticity, cohesive plastic jumps, embedded jumps, each integrated at
+  its own points), and ``energy_error`` = W - (E - E(t=0)) - D, zero up to the time integration;
+- the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
+- for the paper's [loading] form, ``u_axial`` (top shortening) and ``F_axial`` (top reaction,
+  positive in compression).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rockfrac.elements.base import ElementGroup
+from rockfrac.elements.solid import SolidGroup
+from rockfrac.mesh.mesh import Mesh
+from rockfrac.model import Model
+from rockfrac.solve.stepping import StepInfo
+
+BASE = ["step", "stage", "control", "load_factor"]
+ALIASES = ["u_axial", "F_axial"]
+COUNTS = ["newton_iterations", "cutbacks"]
+CRACK = ["jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic", "det_ratio", "n_localized", "bulk_plastic"]
+ENERGY = ["W_external", "E_elastic", "D_dissipated", "energy_error"]
+AXES = "xyz"
+
+
+@dataclass
+class Monitor:
+    """A followed quantity: a node's displacement (direction None: columns <name>_x, ...) or the
+    opening of the mean of nodes[1] against nodes[0] along a unit direction (column <name>)."""
+
+    name: str
+    columns: list[str]
+    nodes: tuple[np.ndarray, ...]
+    direction: np.ndarray | None
+    note: str  # what run.log says about it (which nodes)
+
+
+def axial_columns(u: np.ndarray, f_int: np.ndarray, axial_dofs: np.ndarray, thickness: float) -> dict:
+    """u_axial, F_axial of the [loading] form (the paper's Fig. 5 axes)."""
+    reaction = f_int[axial_dofs].sum() / thickness  # per unit thickness; no external force on top
+    return {"u_axial": -float(u[axial_dofs].mean()), "F_axial": -float(reaction)}
+
+
+def crack_columns(groups: list[ElementGroup], rec: dict | None) -> dict:
+    """Means of the discontinuities' point records, counts, the embedded event and bulk plasticity."""
+    row: dict = {}
+    if rec is not None and rec["state"].size:
+        for k in ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi"):
+            if k in rec:
+                row[k] = float(np.mean(rec[k]))
+        row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
+    elif rec is not None:
+        row["n_plastic"] = 0
+    events = [e for g in groups if (e := g.committed_event()) is not None]
+    if events:
+        row["det_ratio"] = min(events)
+        row["n_localized"] = int(sum(g.localized_count() for g in groups))
+    solids = [g for g in groups if isinstance(g, SolidGroup)]
+    fractions = [(f, g.wdet.size) for g in solids if (f := g.plastic_fraction()) is not None]
+    if fractions:
+        row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
+    return row
+
+
+def step_columns(info: StepInfo) -> dict:
+    return {"step": info.step, "stage": info.stage, "load_factor": info.load_factor,
+            "newton_iterations": info.newton.iterations, "cutbacks": info.cutbacks, "control": info.controlled_by}
+
+
+class History:
+    """The columns of history.csv for a built case and the row of each converged step.
+
+    The work W_external is accumulated over the steps, so the object carries (W, u, f) of the last
+    step; :meth:`state` and :meth:`restore` put them in and out of a checkpoint.
+    """
+
+    def __init__(self, mesh: Mesh, model: Model, *, thickness: float, u0: np.ndarray, f0: np.ndarray,
+                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None):
+        self.mesh, self.model, self.thickness, self.axial_dofs = mesh, model, thickness, axial_dofs
+        self.dim = mesh.dim
+        self.n_u = self.dim * mesh.n_nodes
+        self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if len(ids)}
+        self.monitors = monitors
+        group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
+        self.reserved = BASE + ALIASES + COUNTS + CRACK + ENERGY + ["time"] + group_cols
+        self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + ["time"]
+                        + group_cols + [c for m in monitors for c in m.columns] + ENERGY)
+        self.e0 = self.elastic_energy(u0)
+        self.work = 0.0
+        self.u_prev = u0[: self.n_u].copy()
+        self.f_prev = self._initial_f_int(u0, f0)
+
+    def _initial_f_int(self, u0: np.ndarray, f0: np.ndarray) -> np.ndarray:
+        """f_int at t = 0 (zero for a stress-free start; else the state's internal forces)."""
+        if not np.any(f0) and not np.any(u0):
+            return np.zeros(self.n_u)
+        self.model.begin_step()
+        return self.model.assemble(u0, u0, f0).f_int[: self.n_u].copy()
+
+    @property
+    def notes(self) -> list[str]:
+        return [m.note for m in self.monitors]
+
+    def elastic_energy(self, u: np.ndarray) -> float:
+        return sum(g.elastic_energy(u) for g in self.model.groups) / self.thickness
+
+    def dissipated(self) -> float:
+        return sum(g.dissipated_energy() for g in self.model.groups) / self.thickness
+
+    def state(self) -> dict[str, np.ndarray]:
+        return {"work": np.array(self.work), "u_prev": self.u_prev, "f_prev": self.f_prev}
+
+    def restore(self, saved: dict[str, np.ndarray]) -> None:
+        self.work = float(saved["work"])
+        self.u_prev = saved["u_prev"].copy()
+        self.f_prev = saved["f_prev"].copy()
+
+    def row(self, info: StepInfo, rec: dict | None) -> dict:
+        """Every column of the step (committed state)."""
+        row = step_columns(info)
+        if self.axial_dofs is not None:
+            row.update(axial_columns(info.u, info.f_int, self.axial_dofs, self.thickness))
+        row.update(crack_columns(self.model.groups, rec))
+        row["time"] = info.stage_index + info.load_factor
+        u = info.u[: self.n_u].reshape(-1, self.dim)
+        f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)
+        r = (info.f_int - f_ext)[: self.n_u].reshape(-1, self.dim) / self.thickness
+        for g, ids in self.groups.items():
+            um, rs = u[ids].mean(axis=0), r[ids].sum(axis=0)
+            for a in range(self.dim):
+                row[f"u_{g}_{AXES[a]}"] = float(um[a])
+                row[f"R_{g}_{AXES[a]}"] = float(rs[a])
+        for m in self.monitors:
+            if m.direction is None:
+                for a, col in enumerate(m.columns):
+                    row[col] = float(u[m.nodes[0][0], a])
+            else:
+                rel = u[m.nodes[1]].mean(axis=0) - u[m.nodes[0]].mean(axis=0)
+                row[m.name] = float(rel @ m.direction)
+        f_now = info.f_int[: self.n_u]
+        u_now = info.u[: self.n_u]
+        self.work += 0.5 * float((self.f_prev + f_now) @ (u_now - self.u_prev)) / self.thickness
+        self.u_prev, self.f_prev = u_now.copy(), f_now.copy()
+        e_el, dissipated = self.elastic_energy(info.u), self.dissipated()
+        row.update(W_external=self.work, E_elastic=e_el, D_dissipated=dissipated,
+                   energy_error=self.work - (e_el - self.e0) - dissipated)
+        return row

@@ -1,0 +1,197 @@
+"""Observers of the stepping: each converged step is handed to every observer, which writes one
+output (history.csv, points.csv, the ParaView series, run.log, checkpoints) or acts on it (stop
+rules, progress). An observer sees the committed state only; none changes it.
+"""
+
+from __future__ import annotations
+
+from abc import ABC
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rockfrac.output import checkpoint
+from rockfrac.output.csvout import CsvWriter
+from rockfrac.solve.stepping import Position, StepInfo, StopRun
+
+
+@dataclass
+class Step:
+    """What the observers get: the stepping's record, the history row and the point records."""
+
+    info: StepInfo
+    row: dict
+    points: dict[str, np.ndarray] | None
+
+
+class Observer(ABC):
+    """Receives every converged step; closes its files at the end (also after a failure)."""
+
+    def step(self, step: Step) -> None:  # noqa: B027 (an observer may only close)
+        """React to a converged step."""
+
+    def close(self) -> None:  # noqa: B027
+        """Release files (idempotent)."""
+
+
+class HistoryCsv(Observer):
+    def __init__(self, path: Path, columns: list[str], keep_steps: int | None):
+        self.writer = CsvWriter(path, columns, keep_steps=keep_steps)
+
+    def step(self, step: Step) -> None:
+        self.writer.write(step.row)
+
+    def digest(self) -> str:
+        return self.writer.digest()
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+class PointsCsv(Observer):
+    def __init__(self, path: Path, columns: list[str], keep_steps: int | None):
+        self.writer = CsvWriter(path, columns, keep_steps=keep_steps)
+
+    def step(self, step: Step) -> None:
+        rec = step.points
+        if rec is None:
+            return
+        n = rec["x"].shape[0]
+        rec = dict(rec, step=np.full(n, step.info.step))
+        self.writer.write_many(rec, n)
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+class VtkSeriesWriter(Observer):
+    """The ParaView series: every ``every``-th step, its fields from ``fields(u)``."""
+
+    def __init__(self, folder: Path, every: int, fields: Callable, resume_at: int | None):
+        from rockfrac.output.vtk import VtkSeries
+
+        self.series = VtkSeries(folder, resume=resume_at is not None)
+        if resume_at is not None:
+            self.series.truncate_after(resume_at)
+        self.every, self.fields = every, fields
+
+    def step(self, step: Step) -> None:
+        if step.info.step % self.every == 0:
+            self.series.write(step.info.step, float(step.info.step), self.fields(step.info.u))
+
+
+class RunLog(Observer):
+    """run.log, line-buffered: one line per step, the Newton iterations, events, checkpoints."""
+
+    def __init__(self, path: Path, resume_at: int | None, events: Callable[[], list[str]]):
+        self.fh = _open_log(path, resume_at)
+        self.events = events
+        self.n_events = len(events()) if resume_at is not None else 0
+        self.quantity = None  # the column the step line shows, besides the load factor
+
+    def __call__(self, msg: str) -> None:
+        if not self.fh.closed:
+            self.fh.write(msg + "\n")
+
+    def step(self, step: Step) -> None:
+        info, row = step.info, step.row
+        if "F_axial" in row:
+            shown = f"u={row['u_axial']:.6e} F={row['F_axial']:.6e} "
+        else:
+            shown = ""
+        self(f"step {info.step} [{info.stage}] lf={info.load_factor:.6f} {shown}iterations={info.newton.iterations}")
+        lines = self.events()
+        for line in lines[self.n_events:]:
+            kind, _, text = line.partition(": ")
+            self(f"  {kind} at step {info.step}: {text}")
+        self.n_events = len(lines)
+
+    def close(self) -> None:
+        self.fh.close()
+
+
+def _open_log(path: Path, resume_at: int | None):
+    """run.log, line-buffered (a killed run's log is complete up to its last line). A resumed run's
+    log is cut after the line of the checkpoint it resumes from, so no step appears twice."""
+    if resume_at is None:
+        return open(path, "w", buffering=1, encoding="utf-8")
+    mark = f"  checkpoint at step {resume_at}"
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        lines = []
+    cut = max((i for i, line in enumerate(lines) if line == mark), default=None)
+    fh = open(path, "w", buffering=1, encoding="utf-8")
+    if cut is None:
+        fh.write(f"(run.log of the earlier run did not record its checkpoint at step {resume_at}; "
+                 "its lines were dropped)\n")
+    else:
+        fh.write("".join(line + "\n" for line in lines[: cut + 1]))
+    return fh
+
+
+def position_arrays(p: Position) -> dict[str, np.ndarray]:
+    """A stepping position as plain arrays (for the checkpoint)."""
+    out = {"stage": np.array(p.stage), "lam": np.array(p.lam), "u": p.u, "count": np.array(p.count),
+           "stage_steps": np.array(p.stage_steps), "size_load": np.array(p.size.get("load", np.nan)),
+           "size_path": np.array(p.size.get("path", np.nan)), "has_size": np.array(bool(p.size)),
+           "forced": np.array(p.forced), "has_d_start": np.array(p.d_start is not None),
+           "d_start": p.d_start if p.d_start is not None else np.zeros(0)}
+    if p.f_int is not None:
+        out["f_int"] = p.f_int
+    return out
+
+
+def position_from_arrays(a: dict[str, np.ndarray]) -> Position:
+    """The inverse of :func:`position_arrays` (KeyError if a field is missing)."""
+    size = {"load": float(a["size_load"]), "path": float(a["size_path"])} if bool(a["has_size"]) else {}
+    return Position(int(a["stage"]), float(a["lam"]), a["u"].astype(float), int(a["count"]), int(a["stage_steps"]),
+                    size, bool(a["forced"]), a["d_start"].astype(float) if bool(a["has_d_start"]) else None,
+                    a["f_int"].astype(float) if "f_int" in a else None)
+
+
+class Checkpoints(Observer):
+    """A checkpoint every ``every`` steps (0: never), with the hash of the history written so far."""
+
+    def __init__(self, folder: Path, every: int, groups: list, counters: Callable[[], dict[str, float]],
+                 history: HistoryCsv, case_sha: str, log: RunLog):
+        self.folder, self.every, self.groups, self.counters = folder, every, groups, counters
+        self.history, self.case_sha, self.log = history, case_sha, log
+
+    def step(self, step: Step) -> None:
+        info = step.info
+        if not self.every or info.step % self.every or info.position is None:
+            return
+        checkpoint.save(self.folder, position_arrays(info.position), [g.checkpoint_state() for g in self.groups],
+                        self.counters(), self.case_sha, self.history.digest())
+        self.log(f"  checkpoint at step {info.step}")
+
+
+class StopRules(Observer):
+    """End the program once a quantity falls below a fraction of its peak magnitude (per stage rule);
+    the peak runs over the steps of the stages that carry a rule on that quantity."""
+
+    def __init__(self, stops: list, peaks: dict[str, float]):
+        self.stops = stops
+        self.peaks = peaks
+
+    def step(self, step: Step) -> None:
+        rule = self.stops[step.info.stage_index] if step.info.stage_index < len(self.stops) else None
+        if rule is None:
+            return
+        value = abs(float(step.row[rule.quantity]))
+        peak = self.peaks.get(rule.quantity, 0.0)
+        self.peaks[rule.quantity] = peak = max(peak, value)
+        if value < rule.below_peak_fraction * peak:
+            raise StopRun(f"{rule.quantity} = {step.row[rule.quantity]:.6g} fell below {rule.below_peak_fraction} x "
+                          f"its peak magnitude {peak:.6g}")
+
+
+class Progress(Observer):
+    def __init__(self, callback: Callable[[dict], None]):
+        self.callback = callback
+
+    def step(self, step: Step) -> None:
+        self.callback(step.row)

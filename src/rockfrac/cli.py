@@ -27,12 +27,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
     case = load_case(args.case)
 
     def progress(row: dict) -> None:
-        if not args.quiet:
-            console.print(
-                f"step {row['step']:4d} {row['stage']:<11s} u={row['u_axial']:.4e} m  "
-                f"F={row['F_axial']:10.2f} N/m  it={row['newton_iterations']}",
-                highlight=False,
-            )
+        if args.quiet:
+            return
+        if "F_axial" in row:
+            shown = f"u={row['u_axial']:.4e} m  F={row['F_axial']:10.2f} N/m"
+        else:  # the largest reaction
+            reactions = {k: v for k, v in row.items() if k.startswith("R_")}
+            key = max(reactions, key=lambda k: abs(reactions[k]), default=None)
+            shown = f"lf={row['load_factor']:.4f}" + (f"  {key}={reactions[key]:.4e}" if key else "")
+        console.print(escape(f"step {row['step']:4d} {row['stage']:<11s} {shown}  it={row['newton_iterations']}"),
+                      highlight=False)
 
     summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume,
                        overwrite=args.overwrite,

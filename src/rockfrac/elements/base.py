@@ -144,6 +144,11 @@ class ElementGroup(ABC):
         """Energy dissipated by the group up to the committed state [J] (per unit thickness in 2D)."""
         return 0.0
 
+    def surface_energy(self) -> float:
+        """The work of the traction laws on the group's crack surfaces up to the committed state [J]
+        (its share of the dissipation that a surface law defines; 0 for a bulk group)."""
+        return 0.0
+
 
 def restore_arrays(owner: object, saved: dict[str, np.ndarray], names: tuple[str, ...], what: str) -> None:
     """Copy the saved arrays ``names`` into ``owner``'s arrays of the same names, in place; ValueError

@@ -63,6 +63,9 @@ class _CohesiveGroup(ElementGroup):
     def dissipated_energy(self) -> float:
         return self.dissipated
 
+    def surface_energy(self) -> float:
+        return self.dissipated
+
     def set_initial_stress(self, stress: StressField) -> None:
         """The points start with the tractions the in-situ stress puts on the crack (consistent with
         the bulk on both sides), in the local frame of the state; nothing has yielded."""

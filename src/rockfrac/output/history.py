@@ -10,6 +10,9 @@
   trapezoidal over the steps), ``E_elastic`` (stored in the bulk and in the EP penalties),
   ``D_dissipated`` (bulk plasticity, cohesive plastic jumps, embedded jumps, each integrated at
   its own points), and ``energy_error`` = W - (E - E(t=0)) - D, zero up to the time integration;
+  ``D_surface_law``: the work of the traction laws on the crack surfaces (a cohesive set's
+  dissipation; for embedded cracks |S| <T> . dJ, which the element's own dissipation should equal
+  and, with its constant jump and averaged traction, does not: see README);
 - the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
 - for the paper's [loading] form, ``u_axial`` (top shortening) and ``F_axial`` (top reaction,
   positive in compression).
@@ -31,7 +34,7 @@ BASE = ["step", "stage", "control", "load_factor"]
 ALIASES = ["u_axial", "F_axial"]
 COUNTS = ["newton_iterations", "cutbacks"]
 CRACK = ["jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic", "det_ratio", "n_localized", "bulk_plastic"]
-ENERGY = ["W_external", "E_elastic", "D_dissipated", "energy_error"]
+ENERGY = ["W_external", "E_elastic", "D_dissipated", "energy_error", "D_surface_law"]
 AXES = "xyz"
 
 
@@ -155,5 +158,6 @@ class History:
         self.u_prev, self.f_prev = u_now.copy(), f_now.copy()
         e_el, dissipated = self.elastic_energy(info.u), self.dissipated()
         row.update(W_external=self.work, E_elastic=e_el, D_dissipated=dissipated,
-                   energy_error=self.work - (e_el - self.e0) - dissipated)
+                   energy_error=self.work - (e_el - self.e0) - dissipated,
+                   D_surface_law=sum(g.surface_energy() for g in self.model.groups) / self.thickness)
         return row

@@ -158,6 +158,14 @@ def newton_step(
         if control is not None:
             g, grad = control.measure(u)
             g_ok = abs(g - control.target) <= control.tolerance
+        if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
+                and not np.any(mismatch)):
+            # the loads did not change over the step (a held stage): the start is the equilibrium; a
+            # Newton correction would be round-off, whose energy norm relative to itself never converges
+            result.converged = True
+            result.f_int = asm.f_int
+            result.u, result.lam = u, u_lam
+            return result
         if it > 0:
             rel_e = abs(_dot(last_du[free], r[free])) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)

@@ -20,9 +20,9 @@ from rich.console import Console
 from rich.table import Table
 
 from rockfrac.case.schema import load_validated
-from rockfrac.case.types import MAX_STRESS, Coefficient, Hardening, Modulus, Strength, Stress
-from rockfrac.case.types import Section as _Section
 from rockfrac.errors import CaseError
+from rockfrac.values import MAX_STRESS, Coefficient, Hardening, Modulus, Strength, Stress
+from rockfrac.values import Section as _Section
 
 STRESS_KEYS = ("sxx", "syy", "szz", "sxy", "syz", "sxz")
 ONSET_TOL = 1.0e-8  # |min det A / det A^e| up to this is reported as the onset (round-off)

@@ -56,8 +56,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _read_path(path: Path) -> np.ndarray:
     """The jump path of ``rockfrac drive``: (n, 2) local jumps (t, n) [m]."""
-    from rockfrac.case.types import MAX_DISPLACEMENT
     from rockfrac.files import read_table
+    from rockfrac.values import MAX_DISPLACEMENT
 
     cols = read_table(path, ("jump_t", "jump_n"), "a jump path [m]", max_abs=MAX_DISPLACEMENT)
     return np.column_stack([cols["jump_t"], cols["jump_n"]])
@@ -67,19 +67,16 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     from rockfrac.case.build import law_of_section
     from rockfrac.case.schema import load_law
     from rockfrac.files import prepare_output
-    from rockfrac.laws.drive import drive_path
     from rockfrac.output.csvout import CsvWriter
 
     law_file = load_law(args.law)
     jumps = _read_path(Path(args.path))
     out = prepare_output(args.out, ("drive.csv",), overwrite=True)  # a material-point run: replaced
     try:
-        rows = drive_path(law_of_section(law_file.law), jumps)
+        rows = law_of_section(law_file.law).drive(jumps)
     except RuntimeError as err:
         raise CaseError(f"{args.path}: {err}") from None
-    cols = ["step", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p",
-            "chi", "c", "tan_phi", "tan_psi"]
-    w = CsvWriter(out / "drive.csv", cols)
+    w = CsvWriter(out / "drive.csv", list(rows))
     w.write_many(rows, len(rows["step"]))
     w.close()
     console.print(f"{len(rows['step'])} path points -> {out / 'drive.csv'}")

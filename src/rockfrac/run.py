@@ -114,7 +114,8 @@ def make_history(built: Built, path: str = "<case>") -> History:
     """The history quantities of a built case, its stop rules checked against them."""
     history = History(built.mesh, built.model, thickness=built.thickness, u0=built.program.u0, f0=built.program.f0,
                       monitors=resolve_monitors(built.case, built.mesh, path),
-                      axial_dofs=built.top_y_dofs if built.case.loading is not None else None)
+                      axial_dofs=built.top_y_dofs if built.case.loading is not None else None,
+                      means=tuple(n for g in built.cohesives for n in g.law.record_names if not n.startswith("eps_")))
     for m in history.monitors:
         clash = [c for c in m.columns if c in history.reserved]
         if clash:
@@ -206,7 +207,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         hist = HistoryCsv(out / "history.csv", history.columns, keep)
         observers.append(hist)
         if case.output.points and (built.cohesives or built.embeddeds):
-            observers.append(PointsCsv(out / "points.csv", POINT_COLUMNS, keep))
+            extra = [n for g in built.cohesives for n in g.law.record_names if n not in POINT_COLUMNS]
+            observers.append(PointsCsv(out / "points.csv", POINT_COLUMNS + list(dict.fromkeys(extra)), keep))
         if case.output.vtk:
             from rockfrac.output.fields import step_output
 

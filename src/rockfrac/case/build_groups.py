@@ -15,10 +15,12 @@ from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.fem.reference import ELEMENTS
-from rockfrac.laws.cohesive_params import CohesiveLaw
+from rockfrac.laws.registry import law_class
+from rockfrac.laws.traction_law import TractionLaw
 from rockfrac.laws.drucker_prager_params import DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
 from rockfrac.mesh import Mesh
+from rockfrac.mesh.interfaces import tied_nodes
 
 AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
 
@@ -38,10 +40,10 @@ def default_augmentation(case: Case, mesh: Mesh, section) -> float:
     return float(max(stiffest_modulus(case) / mean_cell_size(mesh), AUGMENTATION_SAFETY * law.softening_modulus()))
 
 
-def law_of_section(section) -> CohesiveLaw:
-    """The law's parameter object from a validated [cohesive] or [law] section."""
-    names = CohesiveLaw.__dataclass_fields__
-    return CohesiveLaw(**{k: getattr(section, k) for k in names if getattr(section, k, None) is not None})
+def law_of_section(section) -> TractionLaw:
+    """The traction law (plug-in, with its parameters) of a validated [cohesive] or [law] section:
+    EP with the section's kn, kt, RP without."""
+    return law_class(section.law)(section, kn=section.kn, kt=section.kt)
 
 
 def drucker_prager_of(bulk) -> DruckerPrager:
@@ -83,8 +85,6 @@ def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
     law = law_of_section(section)
     if section.form is CohesiveForm.ep:
         return [CohesiveEP(points, law, name=name)]
-    from rockfrac.mesh.interfaces import tied_nodes
-
     root = tied_nodes(mesh)
     copies = np.bincount(root, minlength=mesh.n_nodes)
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]

@@ -1,51 +1,30 @@
-"""[cohesive] / [[cohesive]]: the traction law of Sect. 4.2, its form and where the surfaces go."""
+"""[cohesive] / [[cohesive]]: a traction law, its form (EP penalty or RP multipliers) and where the
+surfaces go.
+
+The keys every cohesive set has are in :class:`CohesiveCommon`; the law's own keys come from the
+law plug-in (``law = "..."``, default the paper's "mohr_coulomb"), so a registered law appears here
+with its parameters and nothing else to change. ``TractionLawSection`` and ``CohesiveSection`` are
+the paper's law's (its keys at the top level of [cohesive], as in the paper's case files).
+"""
 
 from __future__ import annotations
 
 from enum import Enum
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import Field, model_validator
+from pydantic import Discriminator, Field, Tag, model_validator
 
-from rockfrac.case.types import Angle, Energy, Rate, Stiffness, Strength
-from rockfrac.case.types import Section as _Section
+from rockfrac.laws.mohr_coulomb_surface import MohrCoulombParameters, WorkRule
+from rockfrac.laws.registry import DEFAULT, LAWS
+from rockfrac.values import Section as _Section
+from rockfrac.values import Stiffness
+
+TractionLawSection = MohrCoulombParameters  # the paper's law, Sect. 4.2
 
 
 class CohesiveForm(str, Enum):
     ep = "ep"
     rp = "rp"
-
-
-class WorkRule(str, Enum):
-    backward_euler = "backward_euler"
-    trapezoidal = "trapezoidal"
-
-
-class TractionLaw(_Section):
-    """Parameters of the traction law of Sect. 4.2 (Table 1 symbols)."""
-
-    GfI: Energy = Field(description="mode I fracture energy [J/m^2]")
-    GfII: Energy = Field(description="mode II fracture energy [J/m^2]")
-    chi_p: Strength = Field(description="peak tensile strength [Pa]")
-    chi_r: Strength = Field(description="residual tensile strength [Pa]")
-    c_p: Strength = Field(description="peak cohesion [Pa]")
-    c_r: Strength = Field(description="residual cohesion [Pa]")
-    phi_p: Angle = Field(description="peak friction angle [rad]")
-    phi_r: Angle = Field(description="residual friction angle [rad]")
-    psi_p: Angle = Field(description="peak dilation angle [rad]")
-    alpha_chi: Rate = Field(description="softening rate of chi [-]")
-    alpha_c: Rate = Field(description="softening rate of c [-]")
-    alpha_phi: Rate = Field(description="softening rate of tan(phi) [-]")
-    alpha_psi: Rate = Field(description="softening rate of tan(psi) [-]")
-    work_rule: WorkRule = Field(WorkRule.backward_euler, strict=False, description="work that drives softening in a step: "
-                                "'backward_euler' (the paper's: end traction x plastic jump increment; first "
-                                "order in the step) or 'trapezoidal' (mean of the traction where flow starts "
-                                "and the end traction; second order)")
-
-    @model_validator(mode="after")
-    def _residual_below_peak(self):
-        if self.chi_r > self.chi_p or self.c_r > self.c_p or self.phi_r > self.phi_p:
-            raise ValueError("residual values (chi_r, c_r, phi_r) must not exceed the peak ones")
-        return self
 
 
 class Placement(str, Enum):
@@ -56,11 +35,12 @@ class Placement(str, Enum):
     all = "all"
 
 
-class CohesiveSection(TractionLaw):
-    """Traction law of Sect. 4.2, the cohesive-surface form (EP penalty or RP multipliers) and where
-    the surfaces go: the specimen's crack, between two regions (grain/matrix), on every internal
-    edge within a region, along named curves, or on every internal edge."""
+class CohesiveCommon(_Section):
+    """The cohesive-surface form (EP penalty or RP multipliers) and where the surfaces go: the
+    specimen's crack, between two regions (grain/matrix), on every internal edge within a region,
+    along named curves, or on every internal edge."""
 
+    law: str = Field(DEFAULT, description=f"the traction law: {', '.join(repr(k) for k in LAWS)}")
     form: CohesiveForm = Field(strict=False, description="'ep' (elasto-plastic, penalty kn, kt) or 'rp' "
                                "(rigid-plastic, augmented Lagrange multipliers)")
     where: Placement = Field(Placement.crack, strict=False, description="'crack' (the specimen's), 'between' (two "
@@ -73,7 +53,7 @@ class CohesiveSection(TractionLaw):
     augmentation: Stiffness | None = Field(None, description="RP only: augmentation r [Pa/m]")
 
     @model_validator(mode="after")
-    def _placement(self) -> CohesiveSection:
+    def _placement(self) -> CohesiveCommon:
         need = {Placement.between: 2, Placement.within: 1}
         if self.where in need and (self.regions is None or len(self.regions) != need[self.where]):
             raise ValueError(f"where = '{self.where.value}' needs regions = a list of {need[self.where]} region name(s)")
@@ -84,7 +64,7 @@ class CohesiveSection(TractionLaw):
         return self
 
     @model_validator(mode="after")
-    def _form_keys(self) -> CohesiveSection:
+    def _form_keys(self) -> CohesiveCommon:
         if self.form is CohesiveForm.ep:
             missing = [k for k in ("kn", "kt") if getattr(self, k) is None]
             if missing:
@@ -97,3 +77,33 @@ class CohesiveSection(TractionLaw):
             if extra:
                 raise ValueError(f"{', '.join(extra)} only apply to form = 'ep' (RP has no elastic jump)")
         return self
+
+
+def _section(name: str, parameters: type[_Section]) -> type[CohesiveCommon]:
+    """[cohesive] with law = name: the common keys and the law's."""
+    cls = type(f"Cohesive_{name}", (CohesiveCommon, parameters), {
+        "__annotations__": {"law": Literal[name]},  # type: ignore[valid-type]
+        "law": Field(name, description="the traction law"),
+        "__doc__": f"[cohesive] with law = '{name}': {LAWS[name].summary}",
+        "__module__": __name__,
+    })
+    return cls
+
+
+SECTIONS: dict[str, type[CohesiveCommon]] = {name: _section(name, law.Parameters) for name, law in LAWS.items()}
+CohesiveSection = SECTIONS[DEFAULT]  # the paper's law's section
+
+
+def _law_of(value: Any) -> str:
+    if isinstance(value, dict):
+        return value.get("law", DEFAULT) if isinstance(value.get("law", DEFAULT), str) else DEFAULT
+    return getattr(value, "law", DEFAULT)
+
+
+AnyCohesiveSection = Annotated[
+    Union[tuple(Annotated[cls, Tag(name)] for name, cls in SECTIONS.items())],  # noqa: UP007
+    Discriminator(_law_of, custom_error_type="law", custom_error_message=f"law must be one of {sorted(LAWS)}"),
+]
+
+__all__ = ["AnyCohesiveSection", "CohesiveCommon", "CohesiveForm", "CohesiveSection", "Placement", "SECTIONS",
+           "TractionLawSection", "WorkRule"]

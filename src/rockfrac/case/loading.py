@@ -6,8 +6,8 @@ from enum import Enum
 
 from pydantic import Field, model_validator
 
-from rockfrac.case.types import Count, Displacement, Fraction, Length, Strength
-from rockfrac.case.types import Section as _Section
+from rockfrac.values import Count, Displacement, Fraction, Length, Strength
+from rockfrac.values import Section as _Section
 
 
 class Control(str, Enum):

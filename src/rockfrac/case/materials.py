@@ -7,8 +7,8 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from rockfrac.case.types import Angle, Coefficient, Count, Hardening, Modulus, Rate, Strength
-from rockfrac.case.types import Section as _Section
+from rockfrac.values import Angle, Coefficient, Count, Hardening, Modulus, Rate, Strength
+from rockfrac.values import Section as _Section
 
 
 class BulkModel(str, Enum):

@@ -7,8 +7,8 @@ from enum import Enum
 
 from pydantic import Field, model_validator
 
-from rockfrac.case.types import Coordinate, Count, Length
-from rockfrac.case.types import Section as _Section
+from rockfrac.values import Coordinate, Count, Length
+from rockfrac.values import Section as _Section
 
 MAX_CELLS_ALONG = 100_000  # elements along one side of a generated mesh
 MAX_CELLS = 20_000_000  # cells of a generated mesh

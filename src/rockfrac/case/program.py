@@ -13,7 +13,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from rockfrac.case.types import (
+from rockfrac.values import (
     MAX_STRESS,
     Coordinate,
     Count,
@@ -22,7 +22,7 @@ from rockfrac.case.types import (
     Length,
     Stress,
 )
-from rockfrac.case.types import Section as _Section
+from rockfrac.values import Section as _Section
 
 Component = Literal["x", "y", "z"]
 GroupName = str

@@ -11,15 +11,25 @@ from __future__ import annotations
 
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from rockfrac.case.cohesive_section import (
+    AnyCohesiveSection,
+    CohesiveCommon,
     CohesiveForm,
     CohesiveSection,
     Placement,
-    TractionLaw,
+    TractionLawSection,
     WorkRule,
 )
 from rockfrac.case.loading import Control, LoadingSection
@@ -34,15 +44,17 @@ from rockfrac.case.mesh_section import ElementType, MeshKind, MeshSection
 from rockfrac.case.messages import format_errors
 from rockfrac.case.program import InitialSection, MonitorSection, StageSection, StopSection
 from rockfrac.case.solver_section import LinearSolverName, OutputSection, SolverSection
-from rockfrac.case.types import Section as _Section
-from rockfrac.case.types import Stiffness
 from rockfrac.errors import CaseError
 from rockfrac.files import read_text
+from rockfrac.laws.registry import DEFAULT as DEFAULT_LAW
+from rockfrac.laws.registry import LAWS
+from rockfrac.values import Section as _Section
+from rockfrac.values import Stiffness
 
 __all__ = ["BandChoice", "BulkModel", "BulkSection", "Case", "CaseError", "CohesiveForm", "CohesiveSection",
            "Control", "ElementType", "EmbeddedSection", "InitialSection", "LinearSolverName", "LoadingSection",
            "MaterialSection", "MeshKind", "MeshSection", "MonitorSection", "OutputSection", "Placement",
-           "SolverSection", "StageSection", "StopSection", "TractionLaw", "WorkRule", "load_case", "parse_case"]
+           "SolverSection", "StageSection", "StopSection", "TractionLawSection", "WorkRule", "load_case", "parse_case"]
 
 
 class Case(_Section):
@@ -51,7 +63,7 @@ class Case(_Section):
     mesh: MeshSection = MeshSection()
     bulk: BulkSection | None = None
     materials: list[MaterialSection] | None = None
-    cohesive: list[CohesiveSection] | None = None  # one [cohesive] table is read as a list of one
+    cohesive: list[AnyCohesiveSection] | None = None  # one [cohesive] table is read as a list of one
     embedded: EmbeddedSection | None = None
     loading: LoadingSection | None = Field(None, description="the paper's loading program (confinement, then "
                                            "axial shortening); or give [[stages]]")
@@ -67,7 +79,7 @@ class Case(_Section):
         return [value] if isinstance(value, dict) else value
 
     @property
-    def cohesive_sets(self) -> list[CohesiveSection]:
+    def cohesive_sets(self) -> list[CohesiveCommon]:
         """The cohesive sections ([cohesive] or several [[cohesive]])."""
         return list(self.cohesive or [])
 
@@ -160,11 +172,26 @@ def load_case(path: str | Path) -> Case:
     return parse_case(data, str(path))
 
 
-class DriveLaw(TractionLaw):
+class DriveCommon(_Section):
     """A law for the material-point driver: the EP form, so kn and kt are required."""
 
+    law: str = Field(DEFAULT_LAW, description="the traction law")
     kn: Stiffness = Field(description="normal penalty stiffness [Pa/m]")
     kt: Stiffness = Field(description="tangential penalty stiffness [Pa/m]")
+
+
+def _drive_section(name: str, parameters: type[_Section]) -> type[DriveCommon]:
+    return type(f"Drive_{name}", (DriveCommon, parameters), {
+        "__annotations__": {"law": Literal[name]}, "law": Field(name, description="the traction law"),
+        "__module__": __name__})
+
+
+DRIVE_SECTIONS = {name: _drive_section(name, law.Parameters) for name, law in LAWS.items()}
+DriveLaw = Annotated[
+    Union[tuple(Annotated[cls, Tag(name)] for name, cls in DRIVE_SECTIONS.items())],  # noqa: UP007
+    Discriminator(lambda v: (v.get("law", DEFAULT_LAW) if isinstance(v, dict) else getattr(v, "law", DEFAULT_LAW)),
+                  custom_error_type="law", custom_error_message=f"law must be one of {sorted(LAWS)}"),
+]
 
 
 class LawFile(_Section):

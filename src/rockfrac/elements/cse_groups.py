@@ -1,4 +1,5 @@
-"""Cohesive-surface element groups (EP and RP) as the Newton solver sees them.
+"""Cohesive-surface element groups (EP and RP) as the Newton solver sees them, over any traction law
+(a :class:`rockfrac.laws.traction_law.TractionLaw` plug-in: its point loops, state and records).
 
 A group evaluates all its points at once (compiled kernels, no Python loop over points),
 keeps its committed and trial state apart and commits only on request.
@@ -9,23 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from rockfrac import threads
-from rockfrac.elements import cse
 from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
-from rockfrac.laws import cohesive as _law
-from rockfrac.laws.cohesive_params import (
-    MODE_PLASTIC,
-    N_STATE,
-    S_EPSN,
-    S_EPSS,
-    S_MODE,
-    S_TN,
-    S_TT,
-    S_UPN,
-    S_UPT,
-    CohesiveLaw,
-)
+from rockfrac.laws.traction_law import MODE_PLASTIC, S_TN, S_TT, S_UPN, S_UPT, TractionLaw
 
 
 class _CohesiveGroup(ElementGroup):
@@ -35,14 +23,14 @@ class _CohesiveGroup(ElementGroup):
     rigid = False  # RP: constrained points have no elastic jump
     checkpoint_attrs = ("state", "tangent", "dissipated")
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw, *, name: str = "cohesive"):
+    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive"):
         self.name = name
         self.points = points
         self.law = law
-        self.p = law.as_array()
+        self.mode = law.mode_slot
         n = points.n
-        self.state = np.zeros((n, N_STATE))  # committed
-        self.trial = np.zeros((n, N_STATE))
+        self.state = law.initial_state(n)  # committed
+        self.trial = law.initial_state(n)
         self.tangent = np.zeros((n, 2, 2))  # committed local tangent dT/d[[u]]
         self.trial_tangent = np.zeros((n, 2, 2))
         self.status = np.zeros(n, dtype=np.int64)
@@ -76,11 +64,8 @@ class _CohesiveGroup(ElementGroup):
             st[:, S_TN] = local[:, 1]
 
     def initial_violation(self) -> str:
-        s = self.state
-        f = np.array([_law.yield_function(s[i, S_TT], s[i, S_TN], s[i, S_EPSN], s[i, S_EPSS], self.p)
-                      for i in range(s.shape[0])])
-        scale = max(self.law.c_p, self.law.chi_p, 1.0)
-        bad = np.flatnonzero(f > 1e-9 * scale)
+        f = self.law.yield_values(self.state)
+        bad = np.flatnonzero(f > 1e-9 * self.law.scale)
         if not bad.size:
             return ""
         x = self.points.x[bad[0]]
@@ -89,7 +74,7 @@ class _CohesiveGroup(ElementGroup):
 
     def any_plastic(self) -> bool:
         """True if a point of the committed state is plastic."""
-        return bool(np.any(self.state[:, S_MODE] == 1.0))
+        return bool(np.any(self.state[:, self.mode] == MODE_PLASTIC))
 
     def flow_directions(self) -> np.ndarray:
         """Unit global-frame directions (n_pts, 2) of dG/dT at the committed tractions.
@@ -97,9 +82,7 @@ class _CohesiveGroup(ElementGroup):
         Where each point slides or opens next under continued loading; the normal n where dG/dT
         vanishes (no shear traction and no dilatancy).
         """
-        s = self.state
-        g = _law.flow_points(np.ascontiguousarray(s[:, S_TT]), np.ascontiguousarray(s[:, S_TN]),
-                             np.ascontiguousarray(s[:, S_EPSN]), np.ascontiguousarray(s[:, S_EPSS]), self.p)
+        g = self.law.flow(self.state)
         norm = np.linalg.norm(g, axis=1)
         g = np.where(norm[:, None] > 0.0, g / np.where(norm > 0.0, norm, 1.0)[:, None], [0.0, 1.0])
         return np.einsum("pji,pj->pi", self.points.frame, g)  # R^T g
@@ -141,35 +124,25 @@ class _CohesiveGroup(ElementGroup):
         return measure
 
     def records(self, u: np.ndarray) -> dict[str, np.ndarray]:
-        """Committed per-point quantities in the local frame (for points.csv)."""
+        """Committed per-point quantities in the local frame (for points.csv): position, jump,
+        traction, plastic jump, the law's own records, mode."""
         s = self.state
-        chi, c, tphi, tpsi = strengths_array(s[:, S_EPSN], s[:, S_EPSS], self.p)
         jump = self.points.local(self.points.jumps(u))
-        return {
+        out = {
             "cell": self.points.cell,
             "x": self.points.x[:, 0],
             "y": self.points.x[:, 1],
             "angle": np.arctan2(self.points.frame[:, 0, 1], self.points.frame[:, 0, 0]),
             "jump_t": jump[:, 0],
             "jump_n": jump[:, 1],
-            "T_t": s[:, 0],
-            "T_n": s[:, 1],
-            "jump_p_t": s[:, 2],
-            "jump_p_n": s[:, 3],
-            "eps_n_p": s[:, S_EPSN],
-            "eps_s_p": s[:, S_EPSS],
-            "chi": chi,
-            "c": c,
-            "tan_phi": tphi,
-            "tan_psi": tpsi,
-            "mode": s[:, S_MODE],
+            "T_t": s[:, S_TT],
+            "T_n": s[:, S_TN],
+            "jump_p_t": s[:, S_UPT],
+            "jump_p_n": s[:, S_UPN],
         }
-
-
-def strengths_array(eps_n: np.ndarray, eps_s: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, ...]:
-    """chi, c, tan(phi), tan(psi) at many points."""
-    out = _law.strengths_points(np.ascontiguousarray(eps_n), np.ascontiguousarray(eps_s), p)
-    return out[:, 0], out[:, 1], out[:, 2], out[:, 3]
+        out.update(self.law.records(s))
+        out["mode"] = s[:, self.mode]
+        return out
 
 
 class CohesiveEP(_CohesiveGroup):
@@ -177,7 +150,7 @@ class CohesiveEP(_CohesiveGroup):
 
     n_extra = 0
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw, *, name: str = "cohesive"):
+    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive"):
         if law.rigid:
             raise ValueError("an EP cohesive surface needs finite kn and kt")
         super().__init__(points, law, name=name)
@@ -185,8 +158,7 @@ class CohesiveEP(_CohesiveGroup):
 
     def elastic_energy(self, u: np.ndarray) -> float:
         """sum w (T_t^2 / kt + T_n^2 / kn) / 2 [J]: the penalty's elastic energy."""
-        s = self.state
-        return float(0.5 * np.sum(self.points.weight * (s[:, S_TT] ** 2 / self.law.kt + s[:, S_TN] ** 2 / self.law.kn)))
+        return self.law.elastic_energy(self.state, self.points.weight)
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
@@ -194,8 +166,8 @@ class CohesiveEP(_CohesiveGroup):
         n = pts.n
         fe = np.empty((n, 4))
         ke = np.empty((n, 4, 4))
-        threads.serial_below(n, threads.COHESIVE_POINTS, cse.ep_points, pts.frame, pts.weight, djump,
-                             self.state, self.tangent, self.p, self.trial, self.trial_tangent, fe, ke, self.status)
+        threads.serial_below(n, threads.COHESIVE_POINTS, self.law.ep_points, pts.frame, pts.weight, djump,
+                             self.state, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)
@@ -220,7 +192,7 @@ class CohesiveRP(_CohesiveGroup):
     PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
     rigid = True
 
-    def __init__(self, points: InterfacePoints, law: CohesiveLaw, augmentation: float,
+    def __init__(self, points: InterfacePoints, law: TractionLaw, augmentation: float,
                  junction: np.ndarray | None = None, *, name: str = "cohesive"):
         super().__init__(points, law, name=name)
         self.aug = float(augmentation)
@@ -273,10 +245,10 @@ class CohesiveRP(_CohesiveGroup):
         fe = np.empty((n, 6))
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
-        mode_prev = self.trial[:, S_MODE].copy()
-        threads.serial_below(n, threads.COHESIVE_POINTS, cse.rp_points, pts.frame, pts.weight, djump,
+        mode_prev = self.trial[:, self.mode].copy()
+        threads.serial_below(n, threads.COHESIVE_POINTS, self.law.rp_points, pts.frame, pts.weight, djump,
                              self.multipliers(u), self.aug, self.eps, self._pinned, self.state, self.tangent,
-                             mode_prev, self.p, self.trial, self.trial_tangent, fe, ke, self.status, switched)
+                             mode_prev, self.trial, self.trial_tangent, fe, ke, self.status, switched)
         # active-set pinning: a point chattering between constrained and plastic (on its yield
         # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
         # only if its traction is inside the surface, else it is released (once per step)
@@ -284,10 +256,8 @@ class CohesiveRP(_CohesiveGroup):
         self._pinned |= (self._flips >= self.PIN_AFTER_FLIPS) & ~self._released
         local = 0.0
         if self._pinned.any():
-            s = self.trial
-            f = np.array([_law.yield_function(s[i, S_TT], s[i, S_TN], s[i, S_EPSN], s[i, S_EPSS], self.p)
-                          for i in np.flatnonzero(self._pinned)])
-            scale = max(self.law.c_p, self.law.chi_p, 1.0)
+            f = self.law.yield_values(self.trial[self._pinned])
+            scale = self.law.scale
             outside = f > 1e-9 * scale
             if outside.any():
                 idx = np.flatnonzero(self._pinned)[outside]

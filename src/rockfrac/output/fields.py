@@ -38,22 +38,25 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
     n_if = cells.shape[0]
-    sums = {"jump": np.zeros((n_if, 2)), "traction": np.zeros((n_if, 2)), "plastic_jump": np.zeros((n_if, 2)),
-            "c": np.zeros(n_if), "tan_phi": np.zeros(n_if), "chi": np.zeros(n_if)}
+    sums = {"jump": np.zeros((n_if, 2)), "traction": np.zeros((n_if, 2)), "plastic_jump": np.zeros((n_if, 2))}
+    for name in dict.fromkeys(n for g in built.cohesives for n in g.law.record_names):
+        sums[name] = np.full(n_if, np.nan)  # NaN where the cell's law has no such quantity
     count = np.zeros(n_if)
     state = np.full(n_if, -1, dtype=np.int8)
     for g in built.cohesives:
         rec = g.records(u)
         vals = {"jump": np.column_stack([rec["jump_t"], rec["jump_n"]]),
                 "traction": np.column_stack([rec["T_t"], rec["T_n"]]),
-                "plastic_jump": np.column_stack([rec["jump_p_t"], rec["jump_p_n"]]),
-                "c": rec["c"], "tan_phi": rec["tan_phi"], "chi": rec["chi"]}
+                "plastic_jump": np.column_stack([rec["jump_p_t"], rec["jump_p_n"]])}
+        vals.update({name: rec[name] for name in g.law.record_names})
         rigid = g.rigid
         st = np.where(rec["mode"] == MODE_PLASTIC, CrackState.PLASTIC,
                       CrackState.CONSTRAINED if rigid else CrackState.ELASTIC).astype(np.int8)
         for a, b in ((0, 2), (1, 3)):  # the two node pairs of each interface cell
             idx, hit = _pair_index(g.points.minus, g.points.plus, n, cells[:, a], cells[:, b])
             for name, v in vals.items():
+                if name in g.law.record_names:  # start from 0 where this law writes
+                    sums[name][hit] = np.where(np.isnan(sums[name][hit]), 0.0, sums[name][hit])
                 sums[name][hit] += v[idx[hit]]
             count[hit] += 1
             state[hit] = np.maximum(state[hit], st[idx[hit]])

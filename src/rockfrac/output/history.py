@@ -56,11 +56,14 @@ def axial_columns(u: np.ndarray, f_int: np.ndarray, axial_dofs: np.ndarray, thic
     return {"u_axial": -float(u[axial_dofs].mean()), "F_axial": -float(reaction)}
 
 
-def crack_columns(groups: list[ElementGroup], rec: dict | None) -> dict:
+MEANS = ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi")  # point records averaged into the history
+
+
+def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str, ...] = MEANS) -> dict:
     """Means of the discontinuities' point records, counts, the embedded event and bulk plasticity."""
     row: dict = {}
     if rec is not None and rec["state"].size:
-        for k in ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi"):
+        for k in means:
             if k in rec:
                 row[k] = float(np.mean(rec[k]))
         row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
@@ -90,15 +93,18 @@ class History:
     """
 
     def __init__(self, mesh: Mesh, model: Model, *, thickness: float, u0: np.ndarray, f0: np.ndarray,
-                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None):
+                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None, means: tuple[str, ...] = ()):
+        """means: point records averaged into columns besides MEANS (a traction law's own)."""
+        self.means = MEANS + tuple(m for m in means if m not in MEANS)
         self.mesh, self.model, self.thickness, self.axial_dofs = mesh, model, thickness, axial_dofs
         self.dim = mesh.dim
         self.n_u = self.dim * mesh.n_nodes
         self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if len(ids)}
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
-        self.reserved = BASE + ALIASES + COUNTS + CRACK + ENERGY + ["time"] + group_cols
-        self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + ["time"]
+        extra = [m for m in self.means if m not in CRACK]
+        self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["time"] + group_cols
+        self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + extra + ["time"]
                         + group_cols + [c for m in monitors for c in m.columns] + ENERGY)
         self.e0 = self.elastic_energy(u0)
         self.work = 0.0
@@ -135,7 +141,7 @@ class History:
         row = step_columns(info)
         if self.axial_dofs is not None:
             row.update(axial_columns(info.u, info.f_int, self.axial_dofs, self.thickness))
-        row.update(crack_columns(self.model.groups, rec))
+        row.update(crack_columns(self.model.groups, rec, self.means))
         row["time"] = info.stage_index + info.load_factor
         u = info.u[: self.n_u].reshape(-1, self.dim)
         f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)

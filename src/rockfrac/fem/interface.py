@@ -1,0 +1,72 @@
+"""Zero-thickness interface kinematics with nodal integration: the blocks of a (minus, plus) node
+pair from its local traction and tangent, and the multiplier rows of the rigid-plastic form.
+
+Each point is a (minus, plus) node pair, dofs (minus x, minus y, plus x, plus y[, lambda x, lambda y]);
+the jump is u(+) - u(-) in the global frame, rotated into the local (t, n) frame by R (rows t, n);
+a local traction T gives the global T_g = R^T T, entering the weak form (5) as + int [[w]] . T ds.
+Compiled helpers, inlined into the traction laws' point loops (one loop per law: a law's update is
+inlined, which a function passed at run time could not be).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+
+CHUNK = 256  # points per prange chunk (one scratch per chunk)
+
+
+@nb.njit(cache=True, inline="always")
+def pair_blocks_local(r, w, t_t, t_n, d, fe, ke):
+    """Force and stiffness of one node pair, dofs (minus x, minus y, plus x, plus y), from the local
+    traction (t_t, t_n) and tangent d: global T_g = R^T t, D_g = R^T d R; on scalars, no temporaries."""
+    tg0 = r[0, 0] * t_t + r[1, 0] * t_n
+    tg1 = r[0, 1] * t_t + r[1, 1] * t_n
+    fe[0] = -w * tg0
+    fe[1] = -w * tg1
+    fe[2] = w * tg0
+    fe[3] = w * tg1
+    for i in range(2):
+        for j in range(2):
+            s = 0.0
+            for a in range(2):
+                for b in range(2):
+                    s += r[a, i] * d[a, b] * r[b, j]
+            k = w * s
+            ke[i, j] = k
+            ke[i, 2 + j] = -k
+            ke[2 + i, j] = -k
+            ke[2 + i, 2 + j] = k
+
+
+@nb.njit(cache=True, inline="always")
+def multiplier_rows(r, w, t_t, t_n, lam, aug, fi, ki):
+    """The rigid-plastic pair's multiplier rows and columns (paper eq. 32-33), after
+    :func:`pair_blocks_local` wrote the displacement blocks of the traction T = (t_t, t_n) (local)
+    computed at the augmented trial lambda + r h: rows w (T_g - lambda) with dT/dlambda = D / r,
+    dT/d[[u]] = D, d(T - lambda)/dlambda = D / r - I. lam (2,): the global multipliers [Pa]."""
+    for a in range(2):
+        tg_a = r[0, a] * t_t + r[1, a] * t_n
+        fi[4 + a] = w * (tg_a - lam[a])
+        for b in range(2):
+            kab = ki[a, b]  # w R^T D R, as pair_blocks_local wrote it
+            ki[a, 4 + b] = -kab / aug
+            ki[2 + a, 4 + b] = kab / aug
+            ki[4 + a, b] = -kab
+            ki[4 + a, 2 + b] = kab
+            ki[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
+
+
+@nb.njit(cache=True, inline="always")
+def junction_rows(r, w, eps, lam, t_old_t, t_old_n, fi, ki):
+    """Least circulation of a constrained junction pair's multipliers: the perturbed-Lagrangian term
+    eps w (lambda - lambda_n) with lambda_n = R^T T_old (see rockfrac.elements.cse_groups.CohesiveRP)."""
+    for a in range(2):
+        lam_n = r[0, a] * t_old_t + r[1, a] * t_old_n
+        fi[4 + a] -= eps * w * (lam[a] - lam_n)
+        ki[4 + a, 4 + a] -= eps * w
+
+
+@nb.njit(cache=True, inline="always")
+def local_jump(r, dj):
+    """(t, n) components of a global jump (2,)."""
+    return r[0, 0] * dj[0] + r[0, 1] * dj[1], r[1, 0] * dj[0] + r[1, 1] * dj[1]

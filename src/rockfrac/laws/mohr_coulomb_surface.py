@@ -1,0 +1,236 @@
+"""The paper's traction law as a plug-in: the tension-capped hyperbolic Mohr-Coulomb surface with
+work softening of Carol, Prat & Lopez (1997), paper Sect. 4.2 (the pointwise kernels are in
+:mod:`rockfrac.laws.cohesive`, the parameter layout in :mod:`rockfrac.laws.cohesive_params`).
+
+At the start of a step (zero jump increment) a point that was plastic in the committed state keeps
+its committed traction and consistent tangent, so the first Newton iteration of a softening step
+predicts continued plastic flow instead of an elastic (or rigid) response.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+import numba as nb
+import numpy as np
+from pydantic import Field, model_validator
+
+from rockfrac.fem.interface import (
+    CHUNK,
+    junction_rows,
+    local_jump,
+    multiplier_rows,
+    pair_blocks_local,
+)
+from rockfrac.laws import cohesive as _law
+from rockfrac.laws.cohesive import (
+    START_GIVEN,
+    START_NONE,
+    ep_update,
+    ep_update_jump,
+    return_step,
+    workspace,
+)
+from rockfrac.laws.cohesive_params import (
+    MODE_PLASTIC,
+    S_DGAMMA,
+    S_EPSN,
+    S_EPSS,
+    S_MODE,
+    S_TN,
+    S_TT,
+    CohesiveLaw,
+)
+from rockfrac.laws.traction_law import TractionLaw
+from rockfrac.values import Angle, Energy, Rate, Section, Strength
+
+
+class WorkRule(str, Enum):
+    backward_euler = "backward_euler"
+    trapezoidal = "trapezoidal"
+
+
+class MohrCoulombParameters(Section):
+    """Parameters of the traction law of Sect. 4.2 (Table 1 symbols)."""
+
+    GfI: Energy = Field(description="mode I fracture energy [J/m^2]")
+    GfII: Energy = Field(description="mode II fracture energy [J/m^2]")
+    chi_p: Strength = Field(description="peak tensile strength [Pa]")
+    chi_r: Strength = Field(description="residual tensile strength [Pa]")
+    c_p: Strength = Field(description="peak cohesion [Pa]")
+    c_r: Strength = Field(description="residual cohesion [Pa]")
+    phi_p: Angle = Field(description="peak friction angle [rad]")
+    phi_r: Angle = Field(description="residual friction angle [rad]")
+    psi_p: Angle = Field(description="peak dilation angle [rad]")
+    alpha_chi: Rate = Field(description="softening rate of chi [-]")
+    alpha_c: Rate = Field(description="softening rate of c [-]")
+    alpha_phi: Rate = Field(description="softening rate of tan(phi) [-]")
+    alpha_psi: Rate = Field(description="softening rate of tan(psi) [-]")
+    work_rule: WorkRule = Field(WorkRule.backward_euler, strict=False, description="work that drives softening in "
+                                "a step: 'backward_euler' (the paper's: end traction x plastic jump increment; "
+                                "first order in the step) or 'trapezoidal' (mean of the traction where flow starts "
+                                "and the end traction; second order)")
+
+    @model_validator(mode="after")
+    def _residual_below_peak(self):
+        if self.chi_r > self.chi_p or self.c_r > self.c_p or self.phi_r > self.phi_p:
+            raise ValueError("residual values (chi_r, c_r, phi_r) must not exceed the peak ones")
+        return self
+
+
+@nb.njit(cache=True, inline="always")
+def _keep_committed(s_old, d_old, s_new, d_new):
+    """Start of a step at a committed plastic point: same traction, committed tangent."""
+    s_new[:] = s_old
+    s_new[S_DGAMMA] = 0.0
+    d_new[:, :] = d_old
+
+
+@nb.njit(cache=True, parallel=True)
+def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status):
+    """EP CSE at all points: local return map (paper eq. 31) and element blocks.
+
+    djump: (n, 2) global jump increment since the committed state [m]; d_old (n, 2, 2) the
+    committed tangents; fe (n, 4), ke (n, 4, 4).
+    """
+    n = frame.shape[0]
+    for c in nb.prange((n + CHUNK - 1) // CHUNK):
+        wk = workspace()  # one scratch per chunk: a plastic point allocates nothing
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            r = frame[i]
+            du_t, du_n = local_jump(r, djump[i])
+            if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
+                _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+                status[i] = 1
+            else:
+                status[i] = ep_update_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i], wk)
+            pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
+
+
+@nb.njit(cache=True, inline="always")
+def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
+              status, switched, wk):
+    """Point i of :func:`rp_points`."""
+    r = frame[i]
+    w = weight[i]
+    h_t, h_n = local_jump(r, djump[i])
+    if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
+        _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+        status[i] = 1
+    elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
+        s_new[i, :] = s_old[i, :]
+        s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t
+        s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n
+        s_new[i, S_DGAMMA] = 0.0
+        s_new[i, S_MODE] = 0.0
+        d_new[i, :, :] = 0.0
+        d_new[i, 0, 0] = aug
+        d_new[i, 1, 1] = aug
+        status[i] = 0
+    else:
+        lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
+        lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
+        comp = 1.0 / aug
+        # trial lambda + r h: elastic, or the return; the work rule's flow starts at the committed
+        # traction of a committed plastic point
+        start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+        status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
+                                s_old[i], p, s_new[i], d_new[i], wk)
+    switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
+    fi = fe[i]
+    ki = ke[i]
+    pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
+    multiplier_rows(r, w, s_new[i, S_TT], s_new[i, S_TN], lam[i], aug, fi, ki)
+    if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
+        junction_rows(r, w, eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
+
+
+@nb.njit(cache=True, parallel=True)
+def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
+              status, switched):
+    """RP CSE at all points: augmented Lagrangian (paper eq. 32-33) with the law's return map.
+
+    Element dofs (n, 6): (minus x, minus y, plus x, plus y, lambda x, lambda y); lam (n, 2)
+    global-frame multipliers [Pa], aug the augmentation r [Pa/m], djump = h (eq. 32) [m].
+    The law is evaluated at the augmented trial traction T^tr = lambda + r h: below the yield
+    surface T = lambda + r h (eq. 33, the constrained state); above it the backward-Euler return
+    T = T^tr - r dgamma dG/dT (the paper's first-plastic-step predictor with K^e = r I, here used
+    in every iteration). The multiplier rows w (T - lambda) = w r (h - Delta[[u^p]]) enforce
+    [[u]]_{n+1} - [[u]]_n = Delta[[u^p]] exactly at convergence, where T = lambda: the converged
+    state solves eq. (34) and the surface is rigid until F(lambda) = 0.
+    mode_prev: mode of each point in the previous iterate (a change counts as a switch). eps (n,):
+    perturbed-Lagrangian weight of constrained junction pairs (0 elsewhere), see CohesiveRP.
+    pinned (n,): held constrained in this iteration whatever their trial (active-set pinning, see
+    CohesiveRP).
+    """
+    n = frame.shape[0]
+    for c in nb.prange((n + CHUNK - 1) // CHUNK):
+        wk = workspace()  # one scratch per chunk: a plastic point allocates nothing
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
+                      fe, ke, status, switched, wk)
+
+
+@nb.njit(cache=True)
+def yield_values(state, p):
+    """F at the states' tractions (n,) [Pa]."""
+    out = np.empty(state.shape[0])
+    for i in range(state.shape[0]):
+        out[i] = _law.yield_function(state[i, S_TT], state[i, S_TN], state[i, S_EPSN], state[i, S_EPSS], p)
+    return out
+
+
+class MohrCoulombSurface(TractionLaw):
+    """The tension-capped hyperbolic Mohr-Coulomb law with work softening (paper Sect. 4.2)."""
+
+    name = "mohr_coulomb"
+    summary = "tension-capped hyperbolic Mohr-Coulomb surface, exponential work softening (paper Sect. 4.2)"
+    Parameters = MohrCoulombParameters
+    state_names = ("T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p", "dgamma", "mode")
+    mode_slot = S_MODE
+    record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
+
+    def __init__(self, params: MohrCoulombParameters, kn: float | None = None, kt: float | None = None):
+        self.law = CohesiveLaw(**{k: getattr(params, k) for k in CohesiveLaw.__dataclass_fields__
+                                  if k not in ("kn", "kt")}, kn=kn, kt=kt)
+        super().__init__(params, kn, kt)
+
+    @property
+    def scale(self) -> float:
+        return max(self.law.c_p, self.law.chi_p, 1.0)
+
+    def vector(self) -> np.ndarray:
+        return self.law.as_array()
+
+    def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
+        ep_points(frame, weight, djump, s_old, d_old, self.p, s_new, d_new, fe, ke, status)
+
+    def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
+                  ke, status, switched) -> None:
+        rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, self.p, s_new, d_new, fe,
+                  ke, status, switched)
+
+    def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:
+        from rockfrac.laws.drive import drive_path
+
+        return drive_path(self.law, jumps)
+
+    def records(self, state: np.ndarray) -> dict[str, np.ndarray]:
+        q = _law.strengths_points(np.ascontiguousarray(state[:, S_EPSN]), np.ascontiguousarray(state[:, S_EPSS]),
+                                  self.p)
+        return {"eps_n_p": state[:, S_EPSN], "eps_s_p": state[:, S_EPSS], "chi": q[:, 0], "c": q[:, 1],
+                "tan_phi": q[:, 2], "tan_psi": q[:, 3]}
+
+    def flow(self, state: np.ndarray) -> np.ndarray:
+        return _law.flow_points(np.ascontiguousarray(state[:, S_TT]), np.ascontiguousarray(state[:, S_TN]),
+                                np.ascontiguousarray(state[:, S_EPSN]), np.ascontiguousarray(state[:, S_EPSS]),
+                                self.p)
+
+    def yield_values(self, state: np.ndarray) -> np.ndarray:
+        return yield_values(np.ascontiguousarray(state), self.p)
+
+    def softening_modulus(self) -> float:
+        return self.law.softening_modulus()
+
+
+__all__ = ["MohrCoulombParameters", "MohrCoulombSurface", "WorkRule", "ep_points", "ep_update", "rp_points"]

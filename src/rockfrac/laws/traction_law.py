@@ -1,0 +1,112 @@
+"""The contract of a cohesive traction law (a plug-in): its parameters, its state layout and its
+compiled point updates, in one module.
+
+A law module defines a subclass of :class:`TractionLaw` and is registered by one line in
+:mod:`rockfrac.laws.registry`; the cohesive element groups, the case schema ([cohesive] law = ...),
+the point output, ``rockfrac drive`` and the CLI take it from there. Local frame (t, n), tension
+positive, tractions in Pa, jumps in m.
+
+State: every law's state vector (n_state,) starts with the common slots T_t, T_n (tractions),
+jump_p_t, jump_p_n (plastic jump) and then holds its own (``state_names``); ``mode_slot`` says
+where the law keeps 0 (elastic/constrained) or 1 (plastic).
+
+Kernels (compiled, with the signatures the groups call):
+
+- ``ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status)``: the penalty
+  form (Sect. 6.1) at every point, blocks (n, 4), (n, 4, 4);
+- ``rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
+  fe, ke, status, switched)``: the rigid-plastic form with augmented multipliers (Sect. 6.2), blocks
+  (n, 6), (n, 6, 6) (see :func:`rockfrac.fem.interface.multiplier_rows`);
+- ``point_update(du, s_old, p, s_new, D)``: one EP update of one point (the material-point driver).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from rockfrac.values import Section
+
+S_TT, S_TN, S_UPT, S_UPN = 0, 1, 2, 3  # the common state slots
+COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
+MODE_PLASTIC = 1.0
+
+
+class TractionLaw(ABC):
+    """A traction law with its parameters: EP form (penalties kn, kt) or RP form (both None)."""
+
+    name: ClassVar[str]  # the value of [cohesive] law
+    summary: ClassVar[str]  # one line for the docs and the CLI
+    Parameters: ClassVar[type[Section]]  # the law's own keys of [cohesive] (pydantic model)
+    state_names: ClassVar[tuple[str, ...]]  # the whole state vector, COMMON_STATE first
+    mode_slot: ClassVar[int]
+    record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
+
+    def __init__(self, params: Any, kn: float | None = None, kt: float | None = None):
+        self.params = params
+        self.kn, self.kt = kn, kt
+        self.p = self.vector()
+
+    @property
+    def n_state(self) -> int:
+        return len(self.state_names)
+
+    @property
+    def rigid(self) -> bool:
+        """The rigid-plastic form (no penalty stiffness)."""
+        return self.kn is None or self.kt is None
+
+    @property
+    def scale(self) -> float:
+        """A traction scale of the law [Pa] (its peak strength), for tolerances."""
+        return 1.0
+
+    # -- what each law provides ----------------------------------------------------------------
+    @abstractmethod
+    def vector(self) -> np.ndarray:
+        """The flat parameter vector the kernels read."""
+
+    @abstractmethod
+    def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
+        """The EP form at every point (see the module docstring)."""
+
+    @abstractmethod
+    def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
+                  ke, status, switched) -> None:
+        """The RP form at every point (see the module docstring)."""
+
+    @abstractmethod
+    def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:
+        """The EP form along total local jumps (n, 2) [m] from zero: step, jump_t, jump_n, the
+        state's named slots and the records, one row per path point; RuntimeError if a point fails."""
+
+    @abstractmethod
+    def records(self, state: np.ndarray) -> dict[str, np.ndarray]:
+        """The law's named per-point quantities (``record_names``) at states (n, n_state)."""
+
+    @abstractmethod
+    def flow(self, state: np.ndarray) -> np.ndarray:
+        """Local flow directions dG/dT (n, 2) at the states' tractions (not normalised; zero where
+        there is none): where each point opens or slides next."""
+
+    @abstractmethod
+    def yield_values(self, state: np.ndarray) -> np.ndarray:
+        """The yield function F (n,) [Pa] at the states' tractions (> 0: outside)."""
+
+    @abstractmethod
+    def softening_modulus(self) -> float:
+        """Upper estimate of the steepest softening slope [Pa/m] (a penalty or augmentation above it
+        keeps the return unique)."""
+
+    # -- shared ----------------------------------------------------------------------------------
+    def elastic_energy(self, state: np.ndarray, weight: np.ndarray) -> float:
+        """sum w (T_t^2 / kt + T_n^2 / kn) / 2 [J]: the penalty's stored energy (0 for RP)."""
+        if self.rigid:
+            return 0.0
+        return float(0.5 * np.sum(weight * (state[:, S_TT] ** 2 / self.kt + state[:, S_TN] ** 2 / self.kn)))
+
+    def initial_state(self, n: int) -> np.ndarray:
+        """Virgin states (n, n_state)."""
+        return np.zeros((n, self.n_state))

@@ -52,7 +52,9 @@ class _CohesiveGroup(ElementGroup):
         return self.dissipated
 
     def surface_energy(self) -> float:
-        return self.dissipated
+        """sum w x the law's own dissipation per unit area [J] (an account independent of the time
+        integration of ``dissipated``)."""
+        return float(np.sum(self.points.weight * self.law.dissipation(self.state)))
 
     def set_initial_stress(self, stress: StressField) -> None:
         """The points start with the tractions the in-situ stress puts on the crack (consistent with

@@ -11,8 +11,9 @@ strength falling linearly with the effective plastic opening ``kappa`` (the accu
 and associated flow ``d[[u^p]] = dgamma dF/dT`` (so ``dkappa = dgamma``). With the penalty (EP) the
 traction-separation curve in pure opening is the bilinear one: elastic slope kn up to sigma_c,
 then linear softening to zero at a plastic opening delta_c; rigid-plastic (RP) it is the extrinsic
-law, rigid up to sigma_c. The energy dissipated to full separation is G_c in pure opening and
-beta^2 G_c in pure shear, the area under the softening branch. Unloading is elastic (the plastic
+law, rigid up to sigma_c. The energy dissipated to full separation is G_c in every mode: in pure
+shear the traction beta s(kappa) works on a plastic slip kappa / beta (peak beta sigma_c, softening
+slope beta^2 sigma_c / delta_c). Unloading is elastic (the plastic
 opening stays). A fully failed point carries no tension and no shear; in compression it is in
 frictionless contact (T_n = kn [[u_n]]^e <= 0, or the multiplier for RP).
 
@@ -55,8 +56,8 @@ class BilinearParameters(Section):
 
     sigma_c: Strength = Field(gt=0, description="tensile strength [Pa]")
     Gc: Energy = Field(description="mode I fracture energy [J/m^2]: the area under the softening branch")
-    beta: float = Field(1.0, gt=0, le=1e3, description="shear strength / tensile strength [-] (pure shear "
-                        "dissipates beta^2 Gc)")
+    beta: float = Field(1.0, gt=0, le=1e3, description="shear strength / tensile strength [-] (every mode "
+                        "dissipates Gc)")
 
 
 @nb.njit(cache=True, inline="always")
@@ -334,6 +335,11 @@ class Bilinear(TractionLaw):
         tt, tn = state[:, S_TT], np.maximum(state[:, S_TN], 0.0)
         t = np.sqrt(tn**2 + tt**2 / self.params.beta**2)
         return t - self.records(state)["strength"]
+
+    def dissipation(self, state: np.ndarray) -> np.ndarray:
+        """int_0^kappa s dk = sigma_c (kappa - kappa^2 / (2 delta_c)), G_c once separated [J/m^2]."""
+        k = np.minimum(state[:, S_KAPPA], self.delta_c)
+        return self.params.sigma_c * (k - k * k / (2.0 * self.delta_c))
 
     def softening_modulus(self) -> float:
         return max(1.0, self.params.beta**2) * self.params.sigma_c / self.delta_c

@@ -229,6 +229,10 @@ class MohrCoulombSurface(TractionLaw):
     def yield_values(self, state: np.ndarray) -> np.ndarray:
         return yield_values(np.ascontiguousarray(state), self.p)
 
+    def dissipation(self, state: np.ndarray) -> np.ndarray:
+        """G_f^I eps_n^p + G_f^II eps_s^p: the opening and slip work the law has counted [J/m^2]."""
+        return self.law.GfI * state[:, S_EPSN] + self.law.GfII * state[:, S_EPSS]
+
     def softening_modulus(self) -> float:
         return self.law.softening_modulus()
 

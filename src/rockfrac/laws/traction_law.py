@@ -96,6 +96,11 @@ class TractionLaw(ABC):
         """The yield function F (n,) [Pa] at the states' tractions (> 0: outside)."""
 
     @abstractmethod
+    def dissipation(self, state: np.ndarray) -> np.ndarray:
+        """The energy (n,) [J/m^2] each point has dissipated up to its state, by the law's own
+        account (the work that drives its softening)."""
+
+    @abstractmethod
     def softening_modulus(self) -> float:
         """Upper estimate of the steepest softening slope [Pa/m] (a penalty or augmentation above it
         keeps the return unique)."""

@@ -10,9 +10,10 @@
   trapezoidal over the steps), ``E_elastic`` (stored in the bulk and in the EP penalties),
   ``D_dissipated`` (bulk plasticity, cohesive plastic jumps, embedded jumps, each integrated at
   its own points), and ``energy_error`` = W - (E - E(t=0)) - D, zero up to the time integration;
-  ``D_surface_law``: the work of the traction laws on the crack surfaces (a cohesive set's
-  dissipation; for embedded cracks |S| <T> . dJ, which the element's own dissipation should equal
-  and, with its constant jump and averaged traction, does not: see README);
+  ``D_surface_law``: the dissipation the traction laws count on the crack surfaces (cohesive: each
+  law's own work variables, independent of the time integration above; embedded cracks: |S| <T> . dJ
+  over the steps, which the element's own dissipation should equal and, with its constant jump and
+  averaged traction, does not: see README);
 - the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
 - for the paper's [loading] form, ``u_axial`` (top shortening) and ``F_axial`` (top reaction,
   positive in compression).

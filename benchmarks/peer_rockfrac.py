@@ -54,7 +54,7 @@ def run(mesh_file: str, n: int, work_rule: str = "trapezoidal") -> dict:
     """Build and load the block; set-up and loading times, Newton iterations, top forces [N/m]."""
     from rockfrac.case.build import build
     from rockfrac.case.schema import parse_case
-    from rockfrac.run import history_row
+    from rockfrac.runner import history_row
     from rockfrac.solve import stepping
     from rockfrac.solve.linear import make_solver
     from rockfrac.solve.newton import NewtonOptions

@@ -134,7 +134,7 @@ def measure(n: int, solver: str, axial_steps: int) -> dict:
     import rockfrac.case.build as build_module
     from rockfrac.case.schema import parse_case
     from rockfrac.fem.assembly import Pattern
-    from rockfrac.run import history_row
+    from rockfrac.runner import history_row
     from rockfrac.solve import stepping
     from rockfrac.solve.linear import make_solver
 

@@ -76,7 +76,7 @@ def measure(problem: str, dofs: float, steps: int, profile: bool = False) -> dic
     from rockfrac.elements.ede import EmbeddedDruckerPrager
     from rockfrac.elements.plastic_solid import DruckerPragerSolid
     from rockfrac.fem.assembly import Pattern
-    from rockfrac.run import history_row
+    from rockfrac.runner import history_row
     from rockfrac.solve import stepping
     from rockfrac.solve.linear import make_solver
     from rockfrac.solve.stepping import StopRun

@@ -72,7 +72,7 @@ def capture(problem: str, dofs: float, folder: Path) -> dict:
     """Run the case until its CAPTURE_AFTER-th Newton solve; save that system to ``folder``."""
     from rockfrac.case.build import build
     from rockfrac.case.schema import parse_case
-    from rockfrac.run import history_row, point_rows
+    from rockfrac.runner import history_row, point_rows
     from rockfrac.solve.linear import make_solver
     from rockfrac.solve.newton import NewtonOptions
     from rockfrac.solve.stepping import SteppingOptions, run_stages

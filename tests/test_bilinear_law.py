@@ -11,7 +11,7 @@ from rockfrac.case.schema import parse_case
 from rockfrac.cli import main
 from rockfrac.laws.bilinear import N_STATE, S_KAPPA, S_MODE, Bilinear, BilinearParameters, return_map
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 
 SIGMA, GC, K = 2e6, 100.0, 1e13  # delta_c = 2 Gc / sigma = 1e-4 m; the penalty 1e13 Pa/m
 

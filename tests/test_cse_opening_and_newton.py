@@ -79,7 +79,7 @@ def iteration_residuals(log_text: str) -> dict[int, list[float]]:
 @pytest.mark.parametrize("form,k", [("rp", None), ("ep", 1e9)])
 def test_plastic_steps_converge_quadratically(tmp_path, form, k, rule):
     from rockfrac.case.schema import parse_case
-    from rockfrac.run import run_case
+    from rockfrac.runner import run_case
 
     case = paper_case(form, k, axial_displacement=1.5e-3, axial_steps=15)  # big steps: many iterations
     case["cohesive"]["work_rule"] = rule

@@ -16,7 +16,7 @@ from rockfrac.fem.reference import HEX8, QUAD4
 from rockfrac.laws.dp_driver import drive_specimen
 from rockfrac.laws.mohr_coulomb_softening import integrate_softening
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.studies import table1
 
 P, W, H = 2e4, 0.04, 0.08

@@ -10,7 +10,7 @@ from conftest import paper_case, with_law
 
 from rockfrac.case.schema import parse_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.studies import table1
 
 A, GF, CHI = 1e3, 1e4, 15680.0

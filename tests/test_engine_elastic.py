@@ -126,7 +126,7 @@ def test_uncracked_specimen_matches_closed_form_with_confinement(tmp_path, n):
     """F = W (E/(1-nu^2) u/H + nu/(1-nu) p) for plane strain under lateral pressure p."""
     from rockfrac.case.schema import parse_case
     from rockfrac.output.csvout import read_csv
-    from rockfrac.run import run_case
+    from rockfrac.runner import run_case
 
     case = parse_case({
         "mesh": {"crack": False, "nx": n, "ny": n},

@@ -202,7 +202,7 @@ def test_engine_assembly_equals_scipy_coo_on_grains():
 
 
 def run_history(case, steps):
-    from rockfrac.run import history_row
+    from rockfrac.runner import history_row
     from rockfrac.solve import stepping
     from rockfrac.solve.linear import make_solver
     from rockfrac.solve.newton import NewtonOptions

@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from rockfrac.case.build import build
 from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.solve import linear
 from rockfrac.solve.newton import Loads, NewtonOptions, newton_step
 from rockfrac.solve.stepping import SteppingOptions, run_stages

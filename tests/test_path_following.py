@@ -8,7 +8,7 @@ import pytest
 
 from rockfrac.case.schema import load_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.studies import table1
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "path_following" / "bar_snapback.toml"

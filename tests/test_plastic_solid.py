@@ -12,7 +12,7 @@ from rockfrac.laws.dp_driver import drive_specimen
 from rockfrac.laws.drucker_prager_params import DruckerPrager
 from rockfrac.mesh import hex_specimen
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 
 E, NU, P, W, H = 1.5e7, 0.3, 2e4, 0.04, 0.08
 LAW = DruckerPrager.from_mohr_coulomb(E, NU, phi=0.5236, c=6000.0, psi=0.087, H=3e5)

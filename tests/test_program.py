@@ -11,7 +11,7 @@ import pytest
 from rockfrac.case.build import build
 from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 
 E, NU = 1e9, 0.25
 W, H = 1.0, 2.0

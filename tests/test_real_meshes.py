@@ -5,7 +5,7 @@ import pytest
 
 from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.studies import table1
 
 BASE = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},

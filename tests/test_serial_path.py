@@ -18,7 +18,7 @@ from conftest import paper_case
 from rockfrac import threads
 from rockfrac.case.build import build
 from rockfrac.case.schema import parse_case
-from rockfrac.run import history_row
+from rockfrac.runner import history_row
 from rockfrac.solve import linear
 from rockfrac.solve.newton import NewtonOptions, _dot, _norm
 from rockfrac.solve.stepping import SteppingOptions, run_stages

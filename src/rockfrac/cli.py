@@ -19,7 +19,7 @@ console = Console(stderr=True, soft_wrap=True)
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from rockfrac.case.schema import load_case
-    from rockfrac.run import run_case
+    from rockfrac.runner import run_case
 
     if args.resume and args.overwrite:
         raise CaseError("--resume and --overwrite contradict each other: resume continues the run in --out, "

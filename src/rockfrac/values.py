@@ -11,9 +11,11 @@ beyond rock (diamond's modulus is 1.2e12 Pa), so no real problem meets them.
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field
+
+T = TypeVar("T")
 
 MAX_MODULUS = 1e13  # Young's moduli [Pa]
 MAX_STRESS = 1e11  # strengths, pressures, stresses [Pa]
@@ -48,3 +50,10 @@ class Section(BaseModel):
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+def given(value: T | None, key: str = "value") -> T:
+    """A value the schema guarantees once the case is resolved (every default filled in)."""
+    if value is None:
+        raise AssertionError(f"{key} was not resolved")
+    return value

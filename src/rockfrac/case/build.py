@@ -141,5 +141,5 @@ def build(case: Case, path: str = "<case>") -> Built:
     program = build_program(case, mesh, model, bulks, cohesives, path)
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
-    thickness = case.mesh.resolved().thickness if mesh.dim == 3 and case.mesh.resolved().thickness else 1.0
+    thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     return Built(case, mesh, model, program, thickness, bulks, cohesives)

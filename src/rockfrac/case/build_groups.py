@@ -7,7 +7,7 @@ import numpy as np
 from rockfrac.case.build_mesh import mean_cell_size
 from rockfrac.case.build_program import require
 from rockfrac.case.cohesive_section import CohesiveForm
-from rockfrac.case.materials import BulkModel
+from rockfrac.case.materials import BulkModel, BulkSection
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
@@ -58,13 +58,15 @@ def embedded_law(section) -> EmbeddedLaw:
                        c_p=None if section.c_p == "eq28" else float(section.c_p))
 
 
-def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[object, np.ndarray, str]]:
+def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[BulkSection, np.ndarray, str]]:
     """(material section, cell indices, region name) for every material; each cell exactly once."""
     if case.bulk is not None:
         return [(case.bulk, np.arange(mesh.cells.shape[0]), "bulk")]
-    names = [m.region for m in case.materials]
+    materials = case.materials or []
+    names = [m.region for m in materials]
     require(names, mesh.regions, "region", "[[materials]] region", path)
-    out = [(m, np.asarray(mesh.regions[m.region]), m.region) for m in case.materials]
+    out: list[tuple[BulkSection, np.ndarray, str]] = [(m, np.asarray(mesh.regions[m.region]), m.region)
+                                                      for m in materials]
     count = np.zeros(mesh.cells.shape[0], dtype=int)
     for _, cells, _ in out:
         count[cells] += 1

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 from rockfrac.case.build_program import require
@@ -10,6 +12,14 @@ from rockfrac.case.mesh_section import ElementType, MeshKind
 from rockfrac.case.schema import Case
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh, cracked_specimen, hex_specimen
+from rockfrac.values import given
+
+
+def plane_element(name: str) -> Literal["quad4", "tri3"]:
+    """A 2D element type name, as the generators take it."""
+    if name not in ("quad4", "tri3"):
+        raise CaseError(f"[mesh] element: {name!r} is not a 2D element (quad4 or tri3)")
+    return "quad4" if name == "quad4" else "tri3"
 
 
 def mean_cell_size(mesh: Mesh) -> float:
@@ -27,24 +37,27 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
             from rockfrac.mesh.gmsh_io import read_mesh
 
             try:
-                mesh = read_mesh(m.file, dim=None)
+                mesh = read_mesh(given(m.file, "[mesh] file"), dim=None)
             except CaseError as err:
                 raise CaseError(f"{path}: [mesh] file: {err}") from None
         elif m.kind is MeshKind.grains:
             from rockfrac.mesh.grains import grain_specimen
 
-            mesh = grain_specimen(m.width, m.height, n_grains=m.n_grains, radius=(m.radius_min, m.radius_max),
-                                  seed=m.seed, element_size=m.element_size, element=m.element.value)
+            mesh = grain_specimen(m.width, m.height, n_grains=given(m.n_grains),
+                                  radius=(given(m.radius_min), given(m.radius_max)), seed=given(m.seed),
+                                  element_size=m.element_size, element=plane_element(m.element.value))
         elif m.kind is MeshKind.block:
             from rockfrac.mesh.grains import block_with_inclusion
 
-            mesh = block_with_inclusion(m.width, m.height, m.nx, m.ny, inclusion=m.inclusion,
-                                        element=m.element.value)
+            box = None if m.inclusion is None else (m.inclusion[0], m.inclusion[1], m.inclusion[2], m.inclusion[3])
+            mesh = block_with_inclusion(m.width, m.height, given(m.nx), given(m.ny), inclusion=box,
+                                        element=plane_element(m.element.value))
         elif m.element is ElementType.hex8:
-            mesh = hex_specimen(m.width, m.height, m.thickness, m.nx, m.ny, m.nz)
+            mesh = hex_specimen(m.width, m.height, given(m.thickness), given(m.nx), given(m.ny), given(m.nz))
         else:
             try:
-                mesh = cracked_specimen(m.width, m.height, m.crack_angle or 0.0, m.nx, m.ny, crack=m.crack)
+                mesh = cracked_specimen(m.width, m.height, m.crack_angle or 0.0, given(m.nx), given(m.ny),
+                                        crack=bool(m.crack))
             except ValueError as err:
                 raise CaseError(f"{path}: [mesh] crack_angle: {err}") from None
     except CaseError:
@@ -70,15 +83,17 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
     chosen, minus = [], []
     for k, c in enumerate(sets):
         key = f"[cohesive{'' if len(sets) == 1 else f' {k + 1}'}]"
+        regions = c.regions or []
         if c.where in (Placement.between, Placement.within):
-            require(c.regions, mesh.regions, "region", f"{key} regions", path)
+            require(regions, mesh.regions, "region", f"{key} regions", path)
         if c.where is Placement.between:
-            mask = itf.edges_between(mesh, *c.regions)
+            mask = itf.edges_between(mesh, regions[0], regions[1])
         elif c.where is Placement.within:
-            mask = itf.edges_within(mesh, c.regions[0])
+            mask = itf.edges_within(mesh, regions[0])
         elif c.where is Placement.curves:
-            require(c.curves, mesh.edge_sets, "curve group", f"{key} curves", path)
-            mask = itf.edges_on(mesh, np.vstack([mesh.edge_sets[n] for n in c.curves]))
+            curves = given(c.curves, f"{key} curves")
+            require(curves, mesh.edge_sets, "curve group", f"{key} curves", path)
+            mask = itf.edges_on(mesh, np.vstack([mesh.edge_sets[n] for n in curves]))
         else:
             mask = itf.all_edges(mesh)
         idx = np.flatnonzero(mask)
@@ -86,7 +101,7 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
             raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal edge of the mesh")
         chosen.append(idx)
         if c.where is Placement.between:  # the first region is the minus side
-            minus.append(itf.minus_side(mesh, idx, c.regions[0]))
+            minus.append(itf.minus_side(mesh, idx, regions[0]))
         else:
             minus.append(cells[idx, 0])
     flat = np.concatenate(chosen)

@@ -32,6 +32,7 @@ from rockfrac.mesh.topology import cell_sides, match, on_boundary, outer_boundar
 from rockfrac.model import Model
 from rockfrac.output.history import Monitor
 from rockfrac.solve.stepping import PathSpec, Stage
+from rockfrac.values import given
 
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
 EQUILIBRIUM_TOL = 1e-8  # unbalanced nodal force at t = 0, relative to the largest initial load
@@ -61,7 +62,7 @@ def require(names, available, what: str, key: str, path: str) -> None:
 def expand_loading(case: Case, mesh: Mesh, path: str) -> list[tuple[StageSection, str]]:
     """[loading] as stages: confinement (supports held, pressure on the sides), then one axial stage
     per target (the top shortened); each with the source a failure names."""
-    load = case.loading
+    load = given(case.loading, "[loading]")
     for key in ("support", "pin", "axial"):
         require([getattr(load, key)], mesh.node_sets, "node group", f"[loading] {key}", path)
     held = {load.support: {"y": 0.0}, load.pin: {"x": 0.0}, load.axial: {"y": 0.0}}
@@ -342,9 +343,9 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         for group, p in pressure.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
-        for group, t in traction.items():
+        for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
-            (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, t, f_end)
+            (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
         f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path)
         if initial is not None:
             f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor)
@@ -407,7 +408,7 @@ def resolve_monitors(case: Case, mesh: Mesh, path: str) -> list[Monitor]:
     for k, m in enumerate(case.monitors or []):
         key = f"[monitors {k + 1}]"
         if m.kind == "displacement":
-            i, d = _nearest(mesh.nodes, m.at, f"{key} at", path)
+            i, d = _nearest(mesh.nodes, given(m.at), f"{key} at", path)
             out.append(Monitor(m.name, [f"{m.name}_{a}" for a in axes], (np.array([i]),), None,
                                f"monitor {m.name}: node {i}, {d:.3g} m from the point asked for"))
         elif m.points is not None:
@@ -417,9 +418,10 @@ def resolve_monitors(case: Case, mesh: Mesh, path: str) -> list[Monitor]:
                                f"monitor {m.name}: opening of node {j} against node {i} ({d1:.3g} and {d2:.3g} m "
                                "from the points asked for)"))
         else:
-            require(m.groups, mesh.node_sets, "node group", f"{key} groups", path)
+            groups = given(m.groups, f"{key} groups")
+            require(groups, mesh.node_sets, "node group", f"{key} groups", path)
             e = _vector(m.direction, mesh.dim, f"{key} direction", path)
-            out.append(Monitor(m.name, [m.name], tuple(np.asarray(mesh.node_sets[g]) for g in m.groups),
-                               e / np.linalg.norm(e), f"monitor {m.name}: opening of {m.groups[1]!r} against "
-                               f"{m.groups[0]!r} along {list(e / np.linalg.norm(e))}"))
+            out.append(Monitor(m.name, [m.name], tuple(np.asarray(mesh.node_sets[g]) for g in groups),
+                               e / np.linalg.norm(e), f"monitor {m.name}: opening of {groups[1]!r} against "
+                               f"{groups[0]!r} along {list(e / np.linalg.norm(e))}"))
     return out

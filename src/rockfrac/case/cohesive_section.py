@@ -10,7 +10,7 @@ the paper's law's (its keys at the top level of [cohesive], as in the paper's ca
 from __future__ import annotations
 
 from enum import Enum
-from typing import Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 from pydantic import Discriminator, Field, Tag, model_validator
 
@@ -82,7 +82,7 @@ class CohesiveCommon(_Section):
 def _section(name: str, parameters: type[_Section]) -> type[CohesiveCommon]:
     """[cohesive] with law = name: the common keys and the law's."""
     cls = type(f"Cohesive_{name}", (CohesiveCommon, parameters), {
-        "__annotations__": {"law": Literal[name]},  # type: ignore[valid-type]
+        "__annotations__": {"law": Literal[name]},
         "law": Field(name, description="the traction law"),
         "__doc__": f"[cohesive] with law = '{name}': {LAWS[name].summary}",
         "__module__": __name__,
@@ -100,10 +100,14 @@ def _law_of(value: Any) -> str:
     return getattr(value, "law", DEFAULT)
 
 
-AnyCohesiveSection = Annotated[
-    Union[tuple(Annotated[cls, Tag(name)] for name, cls in SECTIONS.items())],  # noqa: UP007
-    Discriminator(_law_of, custom_error_type="law", custom_error_message=f"law must be one of {sorted(LAWS)}"),
-]
+if TYPE_CHECKING:  # the union is made at run time from the registry
+    AnyCohesiveSection = CohesiveCommon
+else:
+    AnyCohesiveSection = Annotated[
+        Union[tuple(Annotated[cls, Tag(name)] for name, cls in SECTIONS.items())],  # noqa: UP007
+        Discriminator(_law_of, custom_error_type="law",
+                      custom_error_message=f"law must be one of {sorted(LAWS)}"),
+    ]
 
 __all__ = ["AnyCohesiveSection", "CohesiveCommon", "CohesiveForm", "CohesiveSection", "Placement", "SECTIONS",
            "TractionLawSection", "WorkRule"]

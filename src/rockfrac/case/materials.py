@@ -45,7 +45,8 @@ class BulkSection(_Section):
             raise ValueError(f"model = 'drucker_prager' needs {', '.join(missing)}")
         from rockfrac.laws.drucker_prager_params import DruckerPrager
 
-        DruckerPrager(self.E, self.nu, self.beta, self.b, self.kappa0, self.H or 0.0)  # admissible? (ValueError)
+        DruckerPrager(self.E, self.nu, float(self.beta or 0.0), float(self.b or 0.0), float(self.kappa0 or 0.0),
+                      self.H or 0.0)  # admissible? (ValueError)
         return self
 
     def resolved(self) -> BulkSection:

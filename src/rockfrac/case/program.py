@@ -142,7 +142,8 @@ class MonitorSection(_Section):
     displacement: the displacement of the node nearest ``at`` (columns <name>_x, <name>_y[, _z]).
     opening: the relative displacement of the second point (or group mean) against the first along
     the unit vector from the first to the second (a crack mouth opening; column <name>); with
-    groups, along ``direction``.
+    groups, along ``direction``. A point on a cohesive crack has two nodes there (one per face)
+    and takes the first: put gauge points off the crack, on either side.
     """
 
     name: str = Field(min_length=1, max_length=100, pattern=r"^[A-Za-z][A-Za-z0-9_]*$",
@@ -172,7 +173,7 @@ class MonitorSection(_Section):
                                  "to the second)")
             if self.direction is not None:
                 raise ValueError("direction goes with groups (with points, it is from the first to the second)")
-        else:
+        elif self.groups is not None:
             if len(self.groups) != 2:
                 raise ValueError("groups: two node groups")
             if self.direction is None or len(self.direction) not in (2, 3) or not any(self.direction) or \

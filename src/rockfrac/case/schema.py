@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union
 
 from pydantic import (
     BaseModel,
@@ -137,11 +137,11 @@ class Case(_Section):
 
     def resolved(self) -> Case:
         """The mesh and material sections with every default filled in."""
-        update = {"mesh": self.mesh.resolved()}
+        update: dict[str, Any] = {"mesh": self.mesh.resolved()}
         if self.bulk is not None:
             update["bulk"] = self.bulk.resolved()
         else:
-            update["materials"] = [m.resolved() for m in self.materials]
+            update["materials"] = [m.resolved() for m in self.materials or []]
         return self.model_copy(update=update)
 
 
@@ -187,11 +187,14 @@ def _drive_section(name: str, parameters: type[_Section]) -> type[DriveCommon]:
 
 
 DRIVE_SECTIONS = {name: _drive_section(name, law.Parameters) for name, law in LAWS.items()}
-DriveLaw = Annotated[
-    Union[tuple(Annotated[cls, Tag(name)] for name, cls in DRIVE_SECTIONS.items())],  # noqa: UP007
-    Discriminator(lambda v: (v.get("law", DEFAULT_LAW) if isinstance(v, dict) else getattr(v, "law", DEFAULT_LAW)),
-                  custom_error_type="law", custom_error_message=f"law must be one of {sorted(LAWS)}"),
-]
+if TYPE_CHECKING:  # the union is made at run time from the registry
+    DriveLaw = DriveCommon
+else:
+    DriveLaw = Annotated[
+        Union[tuple(Annotated[cls, Tag(name)] for name, cls in DRIVE_SECTIONS.items())],  # noqa: UP007
+        Discriminator(lambda v: (v.get("law", DEFAULT_LAW) if isinstance(v, dict) else getattr(v, "law", DEFAULT_LAW)),
+                      custom_error_type="law", custom_error_message=f"law must be one of {sorted(LAWS)}"),
+    ]
 
 
 class LawFile(_Section):

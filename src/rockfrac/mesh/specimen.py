@@ -41,7 +41,8 @@ def cracked_specimen(
     """Specimen with a crack through its centre at ``angle`` from horizontal (PAPER_NOTES, Sect. 7).
 
     Each block (below and above the crack) is an ``nx`` x ``ny`` grid; the crack carries ``nx``
-    interface cells with the normal pointing up (lower block = minus side). With ``crack=False``
+    interface cells with the normal pointing up (lower block = minus side); node sets bottom, top,
+    left, right, bottom_left and the crack's faces crack_minus, crack_plus. With ``crack=False``
     the mesh is the uncracked block, a plain ``nx`` x ``ny`` grid.
     """
     if not crack:
@@ -65,8 +66,9 @@ def cracked_specimen(
     crack_minus = np.arange(ny * (nx + 1), n_lower)  # top row of the lower block
     crack_plus = n_lower + np.arange(nx + 1)  # bottom row of the upper block
     interfaces = np.stack([crack_minus[:-1], crack_minus[1:], crack_plus[:-1], crack_plus[1:]], axis=-1)
-    return Mesh(nodes=nodes, cells=quads, cell_type="quad4", interfaces=interfaces,
-                **_boundary_groups(nodes, quads, width, height))
+    groups = _boundary_groups(nodes, quads, width, height)
+    groups["node_sets"].update(crack_minus=crack_minus, crack_plus=crack_plus)  # the crack's two faces
+    return Mesh(nodes=nodes, cells=quads, cell_type="quad4", interfaces=interfaces, **groups)
 
 
 def _boundary_groups(nodes: np.ndarray, quads: np.ndarray, width: float, height: float) -> dict:

@@ -19,7 +19,7 @@ from rockfrac import analytic
 from rockfrac.case.schema import parse_case
 from rockfrac.files import prepare_output
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import RunSummary, run_case
+from rockfrac.runner import RunSummary, run_case
 from rockfrac.studies import table1
 
 EDE, EP9, EP8, RP = "EDE", "EP CSE k=1e9", "EP CSE k=1e8", "RP CSE"

@@ -24,7 +24,7 @@ from rockfrac.analytic import penalty_rule  # noqa: F401 (the study's rule, kept
 from rockfrac.case.schema import parse_case
 from rockfrac.files import prepare_output
 from rockfrac.output.csvout import read_csv
-from rockfrac.run import run_case
+from rockfrac.runner import run_case
 from rockfrac.studies import table1
 
 STIFFNESSES = (1e7, 1e8, 1e9, 1e10, 1e11, 1e12)  # [Pa/m]

@@ -19,6 +19,7 @@ paper: $(STAMP)
 	$(BIN)/rockfrac paper --out $(OUT)
 
 test: $(STAMP)
+	$(BIN)/python -m mypy
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)

@@ -65,5 +65,5 @@ def configure() -> Path | None:
     _prune(target)
     import numba
 
-    numba.config.CACHE_DIR = str(target)
+    numba.config.CACHE_DIR = str(target)  # type: ignore[attr-defined]
     return target

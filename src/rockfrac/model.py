@@ -35,11 +35,14 @@ class Model:
     groups: list[ElementGroup]
     dirichlet: np.ndarray
     dim: int = 2
-    n_dofs: int = 0
-    pattern: Pattern | None = None
-    _const_data: np.ndarray | None = field(default=None, repr=False)
-    _const_matrix: sp.csr_matrix | None = field(default=None, repr=False)
-    _const_force: np.ndarray | None = field(default=None, repr=False)
+    n_dofs: int = field(init=False, default=0)
+    pattern: Pattern = field(init=False, repr=False)
+    free: np.ndarray = field(init=False, repr=False)
+    _const_data: np.ndarray = field(init=False, repr=False)
+    _const_matrix: sp.csr_matrix = field(init=False, repr=False)
+    _const_force: np.ndarray | None = field(init=False, default=None, repr=False)
+    _bc_hit: np.ndarray = field(init=False, repr=False)
+    _bc_diag: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = self.dim * self.n_nodes

@@ -41,6 +41,7 @@ from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import NewtonOptions
 from rockfrac.solve.stepping import Position, RunResult, StepInfo, SteppingOptions, run_stages
 from rockfrac.solve.stop import stop_on_signals
+from rockfrac.values import given
 
 OUTPUTS = ("history.csv", "points.csv", "case.toml", "run.log", checkpoint.FILE, checkpoint.FILE + ".tmp",
            checkpoint.LEGACY, "vtk", "crack_map.png")  # what a run writes into its folder
@@ -73,11 +74,12 @@ def case_warnings(built: Built) -> list[str]:
         # the bulk's length along the load between surfaces: the specimen for its one crack, a cell
         # for surfaces on many edges
         length = float(np.ptp(built.mesh.nodes[:, 1])) if coh.where.value == "crack" else mean_cell_size(built.mesh)
-        k = min(coh.kn, coh.kt)
+        kn, kt = given(coh.kn, "kn"), given(coh.kt, "kt")
+        k = min(kn, kt)
         need = penalty_rule(e_plane, length, PENALTY_ACCURACY)
         if k < need:
             x = e_plane / (k * length)  # the penalty's compliance relative to the bulk's (upper estimate)
-            out.append(f"EP CSE penalty kn, kt = {coh.kn:.3g}, {coh.kt:.3g} Pa/m: k L/E' = {1 / x:.3g} (L = {length:g} m), "
+            out.append(f"EP CSE penalty kn, kt = {kn:.3g}, {kt:.3g} Pa/m: k L/E' = {1 / x:.3g} (L = {length:g} m), "
                        f"so the penalty may add up to {100 * x:.3g} % of the bulk's compliance (pre-peak stiffness "
                        f"up to {100 * x / (1 + x):.3g} % too low); k >= {need:.3g} Pa/m keeps the error below "
                        f"{100 * PENALTY_ACCURACY:g} % (rockfrac penalty-study)")
@@ -190,7 +192,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     resolved = resolve(case)
     case_text = tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True))
     out = prepare_output(out, OUTPUTS, overwrite=overwrite, resume=resume)
-    start, counters = None, {}
+    start: Position | None = None
+    counters: dict[str, float] = {}
     if resume:
         start, counters = _resume(out, built, case_text)
         history.restore({"work": np.array(counters.get("work", 0.0)), "u_prev": start.u[: history.n_u],

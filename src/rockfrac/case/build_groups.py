@@ -15,10 +15,10 @@ from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.fem.reference import ELEMENTS
-from rockfrac.laws.registry import law_class
-from rockfrac.laws.traction_law import TractionLaw
 from rockfrac.laws.drucker_prager_params import DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
+from rockfrac.laws.registry import law_class
+from rockfrac.laws.traction_law import TractionLaw
 from rockfrac.mesh import Mesh
 from rockfrac.mesh.interfaces import tied_nodes
 

@@ -75,10 +75,10 @@ class CrackPaths:
         owner = np.repeat(gids, n)
         key = np.sort(pairs, axis=1)
         order = np.lexsort((key[:, 1], key[:, 0]))
-        k = key[order]
-        for i in np.flatnonzero(np.all(k[1:] == k[:-1], axis=1)):  # once, at set-up
+        ks = key[order]
+        for i in np.flatnonzero(np.all(ks[1:] == ks[:-1], axis=1)):  # once, at set-up
             c1, c2 = int(owner[order[i]]), int(owner[order[i + 1]])
-            a, b = int(k[i, 0]), int(k[i, 1])
+            a, b = int(ks[i, 0]), int(ks[i, 1])
             self.nbr.setdefault(c1, []).append((c2, a, b))
             self.nbr.setdefault(c2, []).append((c1, a, b))
 
@@ -133,8 +133,8 @@ def share_crack_paths(groups: list, nodes: np.ndarray) -> None:
 class EmbeddedDruckerPrager(DruckerPragerSolid):
     """Drucker-Prager cells that localize into embedded discontinuities (one jump per cell)."""
 
-    checkpoint_attrs = ("state", "sigma", "dissipated", "crack_dissipated", "surface_dissipated", "e_state", "gradf", "active", "anchor", "segments",
-                        "last_event", "crack_count")
+    checkpoint_attrs = ("state", "sigma", "dissipated", "crack_dissipated", "surface_dissipated", "e_state",
+                        "gradf", "active", "anchor", "segments", "last_event", "crack_count")
 
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays, the onsets (a list of records) packed into arrays."""
@@ -161,7 +161,7 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
                 (ends[-1] if ends.size else 0) != saved["onset_normals"].shape[0]:
             raise ValueError("the checkpoint's onset records do not fit together (corrupted)")
         starts = ends - count
-        self.onsets = [Onset(int(cell[i]), normal[i].copy(), float(sc[i, 0]), float(sc[i, 1]), float(sc[i, 2]),
+        self.onsets[:] = [Onset(int(cell[i]), normal[i].copy(), float(sc[i, 0]), float(sc[i, 1]), float(sc[i, 2]),
                              float(sc[i, 3]), saved["onset_normals"][a:b].copy(), saved["onset_slips"][a:b].copy())
                        for i, (a, b) in enumerate(zip(starts, ends))]
 
@@ -370,16 +370,17 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         if eligible is not None:
             lowest = lowest[np.isin(e_of[lowest], eligible)]
         lowest_point = int(np.argmin(screened))
-        picks = set(lowest.tolist()) if exact_cells else set()
-        picks.add(lowest_point)
-        picks = sorted(picks)
-        where, best = {}, float(screened.min())
+        chosen = set(lowest.tolist()) if exact_cells else set()
+        chosen.add(lowest_point)
+        picks = sorted(chosen)
+        where: dict[int, tuple] = {}
+        best = float(screened.min())
         if self.plane_strain:  # the exact minima of all picks in one compiled pass; the full
             # Localization (normals, slips) only where a cell can open now
             ratios = min_ratios_plane_strain(self.law, sigma[e_of[picks], qi[picks]])
         else:
             locs = [localization_at(self.law, sigma[int(e_of[k]), int(qi[k])], plane_strain=False) for k in picks]
-            ratios = [loc.min_ratio for loc in locs]
+            ratios = np.array([loc.min_ratio for loc in locs])
         for n_pick, k in enumerate(picks):
             e, q, ratio = int(e_of[k]), int(qi[k]), float(ratios[n_pick])
             best = min(best, ratio) if k == lowest_point else best

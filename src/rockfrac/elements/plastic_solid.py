@@ -170,7 +170,7 @@ def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
 class DruckerPragerSolid(SolidGroup):
     """Nonassociative Drucker-Prager bulk; trial and committed state kept apart."""
 
-    checkpoint_attrs = ("state", "sigma", "dissipated")
+    checkpoint_attrs: tuple[str, ...] = ("state", "sigma", "dissipated")
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager, *,
                  region: str = "bulk", cell_ids: np.ndarray | None = None):

@@ -293,7 +293,7 @@ class Bilinear(TractionLaw):
 
     def vector(self) -> np.ndarray:
         p = np.zeros(N_PARAMS)
-        if not self.rigid:
+        if self.kt is not None and self.kn is not None:
             p[P_CT], p[P_CN] = 1.0 / self.kt, 1.0 / self.kn
         p[P_SIGMA], p[P_DELTA], p[P_BETA] = self.params.sigma_c, self.delta_c, self.params.beta
         return p

@@ -95,7 +95,7 @@ class CohesiveLaw:
 
     def as_array(self) -> np.ndarray:
         p = np.zeros(N_PARAMS)
-        if not self.rigid:
+        if self.kt is not None and self.kn is not None and not self.rigid:
             p[P_CT] = 1.0 / self.kt
             p[P_CN] = 1.0 / self.kn
         p[P_GF1] = self.GfI

@@ -191,6 +191,7 @@ def _locate(law: DruckerPrager, p: np.ndarray, out: SpecimenPath, states: np.nda
     if best is None:
         return _at_step(law, out, k)
     a, exx, sig, s_new, loc = best
+    assert loc is not None  # an indicator at or below zero comes with its localization
     return Onset(k, a, exx, e0 + a * (e1 - e0), sig, s_new[S_GAMMA], -sig[1] * out.width, loc)
 
 

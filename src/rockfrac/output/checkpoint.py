@@ -73,8 +73,8 @@ def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, n
     }
     for name, value in position.items():
         arrays[f"position.{name}"] = np.asarray(value)
-    for name, value in run.items():
-        arrays[f"run.{name}"] = np.array(float(value))
+    for name, count in run.items():
+        arrays[f"run.{name}"] = np.array(float(count))
     for k, state in enumerate(groups):
         for name, value in state.items():
             a = np.asarray(value)
@@ -85,7 +85,7 @@ def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, n
     path = Path(folder) / FILE
     tmp = Path(folder) / (FILE + ".tmp")
     with open(tmp, "wb") as fh:
-        np.savez(fh, **arrays)
+        np.savez(fh, **arrays)  # type: ignore[arg-type]
         fh.flush()
         os.fsync(fh.fileno())
     os.replace(tmp, path)

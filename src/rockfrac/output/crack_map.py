@@ -70,6 +70,8 @@ def draw_crack_map(ax, fields: StepFields, magnification: float = 1.0, cell_fiel
 
     x = deformed_points(fields, magnification)
     b = _block(fields, CellKind.BULK)
+    if b is None:
+        raise ValueError("the fields hold no bulk cells")
     kind, conn = fields.cells[b]
     if kind == "hexahedron":
         conn = conn[:, :4]
@@ -83,7 +85,8 @@ def draw_crack_map(ax, fields: StepFields, magnification: float = 1.0, cell_fiel
     ax.figure.colorbar(polys, ax=ax, label=cell_field, shrink=0.6, location="bottom", pad=0.08)
     cracks = crack_lines(fields, magnification)
     if cracks.opening.size:
-        lines = LineCollection(cracks.segments * 1e3, array=cracks.opening * 1e3, cmap="plasma", linewidths=1.5)
+        lines = LineCollection(list(cracks.segments * 1e3), array=cracks.opening * 1e3, cmap="plasma",
+                               linewidths=1.5)
         ax.add_collection(lines)
         ax.figure.colorbar(lines, ax=ax, label="|jump| [mm]", shrink=0.6)
     ax.autoscale_view()

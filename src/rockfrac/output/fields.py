@@ -68,7 +68,10 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
 
 def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None, dict]:
     """End points of the embedded crack segments (2D), their host cells and fields."""
-    x0, x1, host, data = [], [], [], {"jump": [], "traction": [], "c": [], "tan_phi": [], "state": []}
+    x0: list[np.ndarray] = []
+    x1: list[np.ndarray] = []
+    host: list[np.ndarray] = []
+    data: dict[str, list[np.ndarray]] = {"jump": [], "traction": [], "c": [], "tan_phi": [], "state": []}
     for g in built.embeddeds:
         cells = g.localized()
         if not cells.size or g.dim != 2:

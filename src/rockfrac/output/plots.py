@@ -97,7 +97,7 @@ def deformed_polylines(built, u: np.ndarray, mag: float) -> dict[str, list[np.nd
         x, d = cell_displacement(xe, de, ref_loop, jump, normal)
         out["undeformed"].append(x)
         out["deformed"].append(x + mag * d)
-        if jump is not None:
+        if jump is not None and normal is not None:
             ends = surface_segment(xe, normal)
             pts = ends[0] + np.linspace(0.0, 1.0, EDGE_SAMPLES)[:, None] * (ends[1] - ends[0])
             xi = _inverse_map(xe, pts)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import glob
 import os
 import sys
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -132,9 +132,10 @@ class Pardiso(_Backend):
     def __init__(self) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
 
-        self._solver = None
+        self._solver: Any = None  # pypardiso's solver (its ctypes handle and arrays)
         self._pattern: _Pattern | None = None
-        self._ia = self._ja = None  # 1-based int32 index arrays of the analysed pattern
+        self._ia: Any = None  # 1-based int32 index arrays of the analysed pattern
+        self._ja: Any = None
         self._factored = False
         self._new_step = False
         self.generation = 0  # factorizations done; a factor object is valid for its own only
@@ -281,7 +282,7 @@ class Mumps(_Backend):
     def __init__(self) -> None:
         import mumps  # noqa: F401
 
-        self._ctx = None
+        self._ctx: Any = None  # python-mumps's context
         self._pattern: _Pattern | None = None
         self.generation = 0
         self.analyses = 0

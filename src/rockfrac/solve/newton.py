@@ -167,6 +167,7 @@ def newton_step(
             result.u, result.lam = u, u_lam
             return result
         if it > 0:
+            assert last_du is not None  # set by every iteration before this one
             rel_e = abs(_dot(last_du[free], r[free])) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
             # a state switch in this iterate (constrained <-> plastic) is part of the residual just

@@ -182,6 +182,7 @@ def run_stages(
             use_path = stage.path is not None and (forced or stage.path.active())
             mode = "path" if use_path else "load"
             if use_path:
+                assert stage.path is not None
                 measure = stage.path.measure()  # directions frozen at the committed state
                 g_now, _ = measure(u)
                 target = g_now + size["path"]
@@ -234,6 +235,7 @@ def run_stages(
             position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,
                                 0 if done else stage_steps, {} if done else dict(size), False if done else forced,
                                 None if done else d_start, res.f_int)
+            assert res.f_int is not None  # a converged step has its internal forces
             try:
                 on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, step_cutbacks, mode, position,
                                  loads.forces(lam), index))

@@ -69,8 +69,11 @@ def run_cases(out: Path, axial_steps: int = 400, progress=None) -> list[CaseResu
     results = []
     for name, case in study_cases(axial_steps).items():
         folder = out / "cases" / name.replace(" ", "_").replace("=", "").replace(",", "")
-        summary = run_case(parse_case(case, name), folder, overwrite=True,
-                           progress=(lambda row, n=name: progress(n, row)) if progress else None)
+        step_progress = None
+        if progress is not None:
+            def step_progress(row: dict, n: str = name) -> None:
+                progress(n, row)
+        summary = run_case(parse_case(case, name), folder, overwrite=True, progress=step_progress)
         results.append(CaseResult(name, read_csv(folder / "history.csv"), read_csv(folder / "points.csv"), summary))
     return results
 

@@ -98,8 +98,11 @@ def run_penalty_study(out: str | Path, stiffnesses=STIFFNESSES, axial_steps: int
                       axial_displacement: float = 8e-3, progress=None) -> list[PenaltyRow]:
     """Run RP and EP(k) into out/cases, write penalty.csv, penalty.png and penalty.md."""
     out = prepare_output(out, ())
-    kw = {"axial_steps": axial_steps, "control": "path", "axial_displacement": axial_displacement}
-    h_rp, p_rp, s_rp = _run(out, "rp", table1.cse_case("rp", **kw))
+    def case(form: str, k: float | None = None) -> dict:
+        return table1.cse_case(form, k, 2e3, axial_steps=axial_steps, control="path",
+                               axial_displacement=axial_displacement)
+
+    h_rp, p_rp, s_rp = _run(out, "rp", case("rp"))
     if not s_rp.result.completed:
         raise RuntimeError(f"penalty study: the RP reference stopped: {s_rp.result.message}")
     soft = s_rp.built.cohesive.law.softening_modulus()
@@ -110,7 +113,7 @@ def run_penalty_study(out: str | Path, stiffnesses=STIFFNESSES, axial_steps: int
     for k in stiffnesses:
         if progress:
             progress(k)
-        h, p, s = _run(out, f"ep_{k:.0e}", table1.cse_case("ep", k, 2e3, **kw))
+        h, p, s = _run(out, f"ep_{k:.0e}", case("ep", k))
         closed = analytic.series_slope(table1.BULK["E"], table1.BULK["nu"], W, H, k, k, table1.CRACK_ANGLE)
         if not s.result.completed:
             why = (f"k below the law's softening slope (~{soft:.1e} Pa/m): the EP return map has no unique "
@@ -129,6 +132,15 @@ def run_penalty_study(out: str | Path, stiffnesses=STIFFNESSES, axial_steps: int
             iterations=s.newton_iterations, wall=s.wall_time))
     _write(out, rows, d_rp, soft)
     return rows
+
+
+def _k_of(x: np.ndarray) -> np.ndarray:
+    """k L / E' -> k [Pa/m] (the figure's top axis)."""
+    return np.asarray(x) * E_PLANE / H
+
+
+def _kl_over_e(k: np.ndarray) -> np.ndarray:
+    return np.asarray(k) * H / E_PLANE
 
 
 def _write(out: Path, rows: list[PenaltyRow], d_rp: float, soft_modulus: float) -> None:
@@ -158,7 +170,7 @@ def _write(out: Path, rows: list[PenaltyRow], d_rp: float, soft_modulus: float) 
     ax.set_ylabel("relative error of EP against RP")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    secondary = ax.secondary_xaxis("top", functions=(lambda v: v * E_PLANE / H, lambda v: v * H / E_PLANE))
+    secondary = ax.secondary_xaxis("top", functions=(_k_of, _kl_over_e))  # type: ignore[arg-type]
     secondary.set_xlabel("k [Pa/m]")
     fig.tight_layout()
     fig.savefig(out / "penalty.png", dpi=150)

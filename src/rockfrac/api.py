@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from rockfrac.case.build import Built
 from rockfrac.case.schema import Case, load_case, parse_case
@@ -43,7 +44,7 @@ def make_case(source: Mapping[str, Any] | None = None, **sections: Any) -> Case:
 
 def _plain(value: Any) -> Any:
     """Sections given as schema objects become dicts (so a case can mix both)."""
-    if hasattr(value, "model_dump"):
+    if isinstance(value, BaseModel):
         return value.model_dump(mode="json", exclude_none=True)
     if isinstance(value, Mapping):
         return {k: _plain(v) for k, v in value.items()}

@@ -22,6 +22,7 @@ from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain, screen_plane_strain
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE, DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw, strengths
+from rockfrac.mesh.geometry import surface_segment
 
 
 @dataclass(frozen=True)
@@ -503,8 +504,6 @@ class EmbeddedDruckerPrager(DruckerPragerSolid):
         self.active[e] = active
         self.anchor[e, :dim] = xc
         if dim == 2:
-            from rockfrac.output.plots import surface_segment
-
             self.segments[e] = surface_segment(self.x[e], n[:2], xc)
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress

@@ -54,8 +54,8 @@ from typing import Literal
 import numpy as np
 
 from rockfrac.errors import CaseError
-from rockfrac.fem.reference import ELEMENTS
 from rockfrac.files import check_file
+from rockfrac.mesh.geometry import corner_jacobians
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import (  # noqa: F401 (boundary_edges, boundary_faces, on_boundary: re-exported)
     HEX_FACES,
@@ -295,10 +295,7 @@ def _point(x: np.ndarray) -> str:
 
 def _corner_jacobians(nodes: np.ndarray, cells: np.ndarray, cell_type: str) -> np.ndarray:
     """det J at every corner of every cell, (n_cells, n_corners)."""
-    ref = ELEMENTS[cell_type]
-    dn = ref.shape_gradients(ref.nodes)  # (corner q, node a, xi i)
-    jac = np.einsum("qai,kaj->kqij", dn, nodes[cells])
-    return np.linalg.det(jac)
+    return corner_jacobians(nodes, cells, cell_type)
 
 
 def _orient(nodes: np.ndarray, cells: np.ndarray, cell_type: str, tags: np.ndarray,

@@ -6,8 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rockfrac.fem.kinematics import element_gradients
-from rockfrac.fem.reference import ELEMENTS
+from rockfrac.mesh.geometry import CELL_TYPES, corner_jacobians
 
 
 @dataclass
@@ -62,11 +61,11 @@ class Mesh:
         """Return a list of problems (empty if the mesh is consistent)."""
         problems: list[str] = []
         n = self.n_nodes
-        if self.cell_type not in ELEMENTS:
-            return [f"unknown cell type {self.cell_type!r}; known: {sorted(ELEMENTS)}"]
-        ref = ELEMENTS[self.cell_type]
-        if self.dim != ref.dim or self.cells.shape[1] != ref.n_nodes:
-            return [f"{self.cell_type} cells need {ref.n_nodes} nodes in {ref.dim}D, got "
+        if self.cell_type not in CELL_TYPES:
+            return [f"unknown cell type {self.cell_type!r}; known: {sorted(CELL_TYPES)}"]
+        dim, corners = CELL_TYPES[self.cell_type]
+        if self.dim != dim or self.cells.shape[1] != corners.shape[0]:
+            return [f"{self.cell_type} cells need {corners.shape[0]} nodes in {dim}D, got "
                     f"{self.cells.shape[1]} nodes in {self.dim}D"]
         for name, cells in (("cells", self.cells), ("interfaces", self.interfaces)):
             if cells.size and (cells.min() < 0 or cells.max() >= n):
@@ -74,8 +73,7 @@ class Mesh:
         if problems:
             return problems
         if self.cells.size:
-            _, wdet = element_gradients(self.nodes[self.cells], ref)
-            bad = np.flatnonzero((wdet <= 0.0).any(axis=1))
+            bad = np.flatnonzero((corner_jacobians(self.nodes, self.cells, self.cell_type) <= 0.0).any(axis=1))
             if bad.size:
                 problems.append(f"cells {bad[:5].tolist()} are inverted or degenerate (det J <= 0)")
         if self.interfaces.size:

@@ -12,6 +12,7 @@ import numpy as np
 
 from rockfrac.elements import ede_kernel as K
 from rockfrac.fem.reference import QUAD4
+from rockfrac.mesh.geometry import surface_segment  # noqa: F401 (kept importable here)
 
 EDGE_SAMPLES = 25
 
@@ -55,24 +56,6 @@ def cell_displacement(xe, de, xi, jump=None, normal=None):
         h_s = ((x - xc) @ normal > 0.0).astype(float)
         disp = disp + np.outer(h_s - f_s, jump)
     return x, disp
-
-
-def surface_segment(xe: np.ndarray, normal: np.ndarray, point: np.ndarray | None = None) -> np.ndarray:
-    """End points (2, 2) of the line through ``point`` (default: the centroid) with this normal,
-    clipped to the convex cell with nodes xe (k, 2)."""
-    xc = xe.mean(axis=0) if point is None else np.asarray(point, dtype=float)
-    t = np.array([normal[1], -normal[0]])
-    hits = []
-    k = xe.shape[0]
-    for a in range(k):
-        p, q = xe[a], xe[(a + 1) % k]
-        mat = np.column_stack([t, p - q])
-        if abs(np.linalg.det(mat)) < 1e-14 * np.abs(xe).max() ** 2:
-            continue
-        s, lam = np.linalg.solve(mat, p - xc)
-        if -1e-12 <= lam <= 1 + 1e-12:
-            hits.append(s)
-    return xc + np.outer([min(hits), max(hits)], t)
 
 
 def deformed_polylines(built, u: np.ndarray, mag: float) -> dict[str, list[np.ndarray]]:

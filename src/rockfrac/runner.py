@@ -17,7 +17,7 @@ import numpy as np
 import tomli_w
 
 from rockfrac.analytic import penalty_rule, plane_strain_modulus
-from rockfrac.case.build import Built, build, mean_cell_size, resolve
+from rockfrac.case.build import Built, build, mean_cell_size
 from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
 from rockfrac.errors import CaseError, RunStopped
@@ -189,8 +189,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         case = load_case(case)
     built = build(case, label)  # every input error surfaces here, before any step
     history = make_history(built, label)
-    resolved = resolve(case)
-    case_text = tomli_w.dumps(resolved.model_dump(mode="json", exclude_none=True))
+    case_text = tomli_w.dumps(built.case.model_dump(mode="json", exclude_none=True))  # the resolved case
     out = prepare_output(out, OUTPUTS, overwrite=overwrite, resume=resume)
     start: Position | None = None
     counters: dict[str, float] = {}

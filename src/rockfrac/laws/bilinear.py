@@ -37,7 +37,7 @@ from rockfrac.fem.interface import (
     multiplier_rows,
     pair_blocks_local,
 )
-from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw
+from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw, hold_constrained, keep_committed
 from rockfrac.values import Energy, Section, Strength
 
 # parameter vector
@@ -193,13 +193,6 @@ def point_update(du, s_old, p, s_new, D):
                       s_new, D)
 
 
-@nb.njit(cache=True, inline="always")
-def _keep_committed(s_old, d_old, s_new, d_new):
-    s_new[:] = s_old
-    s_new[S_DGAMMA] = 0.0
-    d_new[:, :] = d_old
-
-
 @nb.njit(cache=True, parallel=True)
 def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status):
     """The EP form at every point (see rockfrac.laws.traction_law)."""
@@ -209,7 +202,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
             r = frame[i]
             du_t, du_n = local_jump(r, djump[i])
             if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
-                _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+                keep_committed(s_old[i], d_old[i], s_new[i], d_new[i], S_DGAMMA)
                 status[i] = 1
             else:
                 status[i] = return_map(s_old[i, S_TT] + du_t / p[P_CT], s_old[i, S_TN] + du_n / p[P_CN], p[P_CT],
@@ -232,17 +225,11 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
             lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]
             lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
             if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
-                _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+                keep_committed(s_old[i], d_old[i], s_new[i], d_new[i], S_DGAMMA)
                 status[i] = 1
             elif pinned[i]:
-                s_new[i, :] = s_old[i, :]
-                s_new[i, S_TT] = lam_t + aug * h_t
-                s_new[i, S_TN] = lam_n + aug * h_n
-                s_new[i, S_DGAMMA] = 0.0
-                s_new[i, S_MODE] = 0.0
-                d_new[i, :, :] = 0.0
-                d_new[i, 0, 0] = aug
-                d_new[i, 1, 1] = aug
+                hold_constrained(s_old[i], s_new[i], d_new[i], lam_t + aug * h_t, lam_n + aug * h_n, aug, S_DGAMMA,
+                                 S_MODE)
                 status[i] = 0
             else:
                 status[i] = return_map(lam_t + aug * h_t, lam_n + aug * h_n, comp, comp, s_old[i], p, s_new[i],

@@ -41,7 +41,7 @@ from rockfrac.laws.cohesive_params import (
     S_TT,
     CohesiveLaw,
 )
-from rockfrac.laws.traction_law import TractionLaw
+from rockfrac.laws.traction_law import TractionLaw, hold_constrained, keep_committed
 from rockfrac.values import Angle, Energy, Rate, Section, Strength
 
 
@@ -78,14 +78,6 @@ class MohrCoulombParameters(Section):
         return self
 
 
-@nb.njit(cache=True, inline="always")
-def _keep_committed(s_old, d_old, s_new, d_new):
-    """Start of a step at a committed plastic point: same traction, committed tangent."""
-    s_new[:] = s_old
-    s_new[S_DGAMMA] = 0.0
-    d_new[:, :] = d_old
-
-
 @nb.njit(cache=True, parallel=True)
 def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status):
     """EP CSE at all points: local return map (paper eq. 31) and element blocks.
@@ -100,7 +92,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
             r = frame[i]
             du_t, du_n = local_jump(r, djump[i])
             if du_t == 0.0 and du_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC:
-                _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+                keep_committed(s_old[i], d_old[i], s_new[i], d_new[i], S_DGAMMA)
                 status[i] = 1
             else:
                 status[i] = ep_update_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i], wk)
@@ -115,17 +107,11 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
     w = weight[i]
     h_t, h_n = local_jump(r, djump[i])
     if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
-        _keep_committed(s_old[i], d_old[i], s_new[i], d_new[i])
+        keep_committed(s_old[i], d_old[i], s_new[i], d_new[i], S_DGAMMA)
         status[i] = 1
     elif pinned[i]:  # the constrained branch of eq. (33): T = lambda + r h, D = r I
-        s_new[i, :] = s_old[i, :]
-        s_new[i, S_TT] = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t
-        s_new[i, S_TN] = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n
-        s_new[i, S_DGAMMA] = 0.0
-        s_new[i, S_MODE] = 0.0
-        d_new[i, :, :] = 0.0
-        d_new[i, 0, 0] = aug
-        d_new[i, 1, 1] = aug
+        hold_constrained(s_old[i], s_new[i], d_new[i], r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t,
+                         r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n, aug, S_DGAMMA, S_MODE)
         status[i] = 0
     else:
         lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)

@@ -25,6 +25,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
+import numba as nb
 import numpy as np
 
 from rockfrac.values import Section
@@ -32,6 +33,29 @@ from rockfrac.values import Section
 S_TT, S_TN, S_UPT, S_UPN = 0, 1, 2, 3  # the common state slots
 COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
 MODE_PLASTIC = 1.0
+
+
+@nb.njit(cache=True, inline="always")
+def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
+    """Start of a step at a committed plastic point (no jump increment yet): same traction, the
+    committed tangent, so Newton's first iteration predicts continued flow (the laws' point loops)."""
+    s_new[:] = s_old
+    s_new[dgamma_slot] = 0.0
+    d_new[:, :] = d_old
+
+
+@nb.njit(cache=True, inline="always")
+def hold_constrained(s_old, s_new, d_new, t_t, t_n, aug, dgamma_slot, mode_slot):
+    """The constrained branch of the RP form (paper eq. 33) for a point held there (active-set
+    pinning): T = lambda + r h given as (t_t, t_n), D = r I."""
+    s_new[:] = s_old[:]
+    s_new[S_TT] = t_t
+    s_new[S_TN] = t_n
+    s_new[dgamma_slot] = 0.0
+    s_new[mode_slot] = 0.0
+    d_new[:, :] = 0.0
+    d_new[0, 0] = aug
+    d_new[1, 1] = aug
 
 
 class TractionLaw(ABC):

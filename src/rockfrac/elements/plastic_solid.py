@@ -8,7 +8,15 @@ import numpy as np
 from rockfrac import threads
 from rockfrac.elements.base import Evaluation
 from rockfrac.elements.solid import SolidGroup
-from rockfrac.fem.kinematics import b_matrix
+from rockfrac.fem.kinematics import (  # noqa: F401 (point_strain, plane_point_strain: kept importable here)
+    add_btcb,
+    add_bts,
+    b_matrix,
+    plane_add_btcb,
+    plane_add_bts,
+    plane_point_strain,
+    point_strain,
+)
 from rockfrac.fem.loads import StressField
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws import drucker_prager as dp
@@ -19,76 +27,15 @@ from rockfrac.laws.elastic import isotropic_compliance
 @nb.njit(cache=True, inline="always")
 def integrate_point(b, w, sig6, c6, idx, fe, ke, cb):
     """fe += w B^T sigma, ke += w B^T C B on the element's Voigt components idx; cb is scratch (nv, nd)."""
-    nv, nd = b.shape
-    for i in range(nd):
-        s = 0.0
-        for k in range(nv):
-            s += b[k, i] * sig6[idx[k]]
-        fe[i] += w * s
-    for k in range(nv):
-        for j in range(nd):
-            s = 0.0
-            for l in range(nv):
-                s += c6[idx[k], idx[l]] * b[l, j]
-            cb[k, j] = w * s
-    for i in range(nd):
-        for j in range(nd):
-            s = 0.0
-            for k in range(nv):
-                s += b[k, i] * cb[k, j]
-            ke[i, j] += s
-
-
-@nb.njit(cache=True, inline="always")
-def point_strain(b, ue, idx, eps6):
-    """Full Voigt strain eps6 (6,) = B u_e on the components idx, zero elsewhere (plane strain)."""
-    nv, nd = b.shape
-    eps6[:] = 0.0
-    for k in range(nv):
-        s = 0.0
-        for j in range(nd):
-            s += b[k, j] * ue[j]
-        eps6[idx[k]] = s
-
-
-@nb.njit(cache=True, inline="always")
-def plane_point_strain(g, ue, eps6):
-    """:func:`point_strain` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped
-    (the same sums in the same order, so the same bits)."""
-    exx = 0.0
-    eyy = 0.0
-    gxy = 0.0
-    for a in range(g.shape[0]):
-        gx, gy = g[a, 0], g[a, 1]
-        exx += gx * ue[2 * a]
-        eyy += gy * ue[2 * a + 1]
-        gxy += gy * ue[2 * a]
-        gxy += gx * ue[2 * a + 1]
-    eps6[:] = 0.0
-    eps6[0] = exx
-    eps6[1] = eyy
-    eps6[3] = gxy
+    add_bts(b, w, sig6, idx, fe)
+    add_btcb(b, w, c6, idx, cb, ke)
 
 
 @nb.njit(cache=True, inline="always")
 def plane_integrate_point(g, w, sig6, c6, fe, ke, cb):
-    """:func:`integrate_point` of a plane cell from its gradients g (n_nodes, 2): B = rows (xx, yy, xy)
-    with two nonzeros per column, skipped zeros, same sums in the same order (same bits)."""
-    n_nodes = g.shape[0]
-    nd = 2 * n_nodes
-    for a in range(n_nodes):
-        gx, gy = g[a, 0], g[a, 1]
-        fe[2 * a] += w * (gx * sig6[0] + gy * sig6[3])
-        fe[2 * a + 1] += w * (gy * sig6[1] + gx * sig6[3])
-        for k in range(3):
-            ik = 3 if k == 2 else k
-            cb[k, 2 * a] = w * (c6[ik, 0] * gx + c6[ik, 3] * gy)
-            cb[k, 2 * a + 1] = w * (c6[ik, 1] * gy + c6[ik, 3] * gx)
-    for a in range(n_nodes):
-        gx, gy = g[a, 0], g[a, 1]
-        for j in range(nd):
-            ke[2 * a, j] += gx * cb[0, j] + gy * cb[2, j]
-            ke[2 * a + 1, j] += gy * cb[1, j] + gx * cb[2, j]
+    """:func:`integrate_point` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
+    plane_add_bts(g, w, sig6, fe)
+    plane_add_btcb(g, w, c6, 3, cb, ke)
 
 
 @nb.njit(cache=True)

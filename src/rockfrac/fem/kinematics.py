@@ -104,6 +104,97 @@ def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
             b[5, c + 2] = g[a, 0]
 
 
+@nb.njit(cache=True, inline="always")
+def add_btcb(b, w, c, idx, cb, ke):
+    """ke += w B^T C B at one point: B (nv, nd), C read at (idx[k], idx[l]) (the element's Voigt
+    components of a 6 x 6 modulus, or idx = 0..nv-1 of a reduced one); cb (nv, nd) is scratch.
+    The one B^T C B of every solid element (elastic blocks, Drucker-Prager and EDE cells)."""
+    nv, nd = b.shape
+    for k in range(nv):
+        for j in range(nd):
+            s = 0.0
+            for l in range(nv):
+                s += c[idx[k], idx[l]] * b[l, j]
+            cb[k, j] = w * s
+    for i in range(nd):
+        for j in range(nd):
+            s = 0.0
+            for k in range(nv):
+                s += b[k, i] * cb[k, j]
+            ke[i, j] += s
+
+
+@nb.njit(cache=True, inline="always")
+def add_bts(b, w, sig6, idx, fe):
+    """fe += w B^T sigma at one point (sigma a Voigt 6-vector, read at idx)."""
+    nv, nd = b.shape
+    for i in range(nd):
+        s = 0.0
+        for k in range(nv):
+            s += b[k, i] * sig6[idx[k]]
+        fe[i] += w * s
+
+
+@nb.njit(cache=True, inline="always")
+def plane_add_btcb(g, w, c, shear, cb, ke):
+    """:func:`add_btcb` of a plane cell from its gradients g (n_nodes, 2): B's rows (xx, yy, xy) have two
+    nonzeros per column, skipped; the same sums in the same order (the same bits). c's rows and
+    columns (xx, yy) are 0, 1 and the shear one is ``shear`` (2 for a 3 x 3 modulus, 3 for a Voigt 6 x 6)."""
+    n_nodes = g.shape[0]
+    nd = 2 * n_nodes
+    for a in range(n_nodes):
+        gx, gy = g[a, 0], g[a, 1]
+        for k in range(3):
+            ik = shear if k == 2 else k
+            cb[k, 2 * a] = w * (c[ik, 0] * gx + c[ik, shear] * gy)
+            cb[k, 2 * a + 1] = w * (c[ik, 1] * gy + c[ik, shear] * gx)
+    for a in range(n_nodes):
+        gx, gy = g[a, 0], g[a, 1]
+        for j in range(nd):
+            ke[2 * a, j] += gx * cb[0, j] + gy * cb[2, j]
+            ke[2 * a + 1, j] += gy * cb[1, j] + gx * cb[2, j]
+
+
+@nb.njit(cache=True, inline="always")
+def plane_add_bts(g, w, sig6, fe):
+    """:func:`add_bts` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
+    for a in range(g.shape[0]):
+        gx, gy = g[a, 0], g[a, 1]
+        fe[2 * a] += w * (gx * sig6[0] + gy * sig6[3])
+        fe[2 * a + 1] += w * (gy * sig6[1] + gx * sig6[3])
+
+
+@nb.njit(cache=True, inline="always")
+def point_strain(b, ue, idx, eps6):
+    """Full Voigt strain eps6 (6,) = B u_e on the components idx, zero elsewhere (plane strain)."""
+    nv, nd = b.shape
+    eps6[:] = 0.0
+    for k in range(nv):
+        s = 0.0
+        for j in range(nd):
+            s += b[k, j] * ue[j]
+        eps6[idx[k]] = s
+
+
+@nb.njit(cache=True, inline="always")
+def plane_point_strain(g, ue, eps6):
+    """:func:`point_strain` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped
+    (the same sums in the same order, so the same bits)."""
+    exx = 0.0
+    eyy = 0.0
+    gxy = 0.0
+    for a in range(g.shape[0]):
+        gx, gy = g[a, 0], g[a, 1]
+        exx += gx * ue[2 * a]
+        eyy += gy * ue[2 * a + 1]
+        gxy += gy * ue[2 * a]
+        gxy += gx * ue[2 * a + 1]
+    eps6[:] = 0.0
+    eps6[0] = exx
+    eps6[1] = eyy
+    eps6[3] = gxy
+
+
 @nb.njit(cache=True, parallel=True)
 def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Element stiffness matrices (n_el, nd, nd) = sum_q w det J B^T D B [N/m, per unit thickness in 2D].
@@ -114,31 +205,14 @@ def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.nda
     nv = d.shape[0]
     nd = n_nodes * dim
     ke = np.zeros((n_el, nd, nd))
+    idx = np.arange(nv)
     for e in nb.prange(n_el):
         b = np.empty((nv, nd))
         db = np.empty((nv, nd))
         for q in range(n_qp):
-            _add_btdb(grads[e, q], wdet[e, q], d, b, db, ke[e])
+            b_matrix(grads[e, q], b)
+            add_btcb(b, wdet[e, q], d, idx, db, ke[e])
     return ke
-
-
-@nb.njit(cache=True, inline="always")
-def _add_btdb(g, w, d, b, db, ke):
-    """ke += w B^T D B at one point with shape gradients g (b, db: work arrays)."""
-    b_matrix(g, b)
-    nv, nd = b.shape
-    for i in range(nv):
-        for j in range(nd):
-            s = 0.0
-            for k in range(nv):
-                s += d[i, k] * b[k, j]
-            db[i, j] = s * w
-    for i in range(nd):
-        for j in range(nd):
-            s = 0.0
-            for k in range(nv):
-                s += b[k, i] * db[k, j]
-            ke[i, j] += s
 
 
 @nb.njit(cache=True, parallel=True)
@@ -160,29 +234,6 @@ def strains(grads: np.ndarray, ue: np.ndarray) -> np.ndarray:
     return eps
 
 
-@nb.njit(cache=True, inline="always")
-def _plane_block(g, wdet, d, db, ke):
-    """ke (8, 8) = sum_q w det J B^T D B of one plane cell, B's zeros skipped; the nonzero products
-    are summed in :func:`elastic_blocks`' order, so the result is the same to the last bit."""
-    n_qp, n_nodes, _ = g.shape
-    nd = 2 * n_nodes
-    for i in range(nd):
-        for j in range(nd):
-            ke[i, j] = 0.0
-    for q in range(n_qp):
-        w = wdet[q]
-        for a in range(n_nodes):  # D B column by column: B[:, 2a] = (gx, 0, gy), B[:, 2a+1] = (0, gy, gx)
-            gx, gy = g[q, a, 0], g[q, a, 1]
-            for i in range(3):
-                db[i, 2 * a] = (d[i, 0] * gx + d[i, 2] * gy) * w
-                db[i, 2 * a + 1] = (d[i, 1] * gy + d[i, 2] * gx) * w
-        for a in range(n_nodes):
-            gx, gy = g[q, a, 0], g[q, a, 1]
-            for j in range(nd):
-                ke[2 * a, j] += gx * db[0, j] + gy * db[2, j]
-                ke[2 * a + 1, j] += gy * db[1, j] + gx * db[2, j]
-
-
 @nb.njit(cache=True)
 def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: np.ndarray,
                      data: np.ndarray) -> None:
@@ -199,13 +250,15 @@ def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: 
     ke = np.empty((nd, nd))
     b = np.empty((nv, nd))
     db = np.empty((nv, nd))
+    idx = np.arange(nv)
     for e in range(n_el):
-        if dim == 2:
-            _plane_block(grads[e], wdet[e], d, db, ke)
-        else:
-            ke[:, :] = 0.0
-            for q in range(n_qp):
-                _add_btdb(grads[e, q], wdet[e, q], d, b, db, ke)
+        ke[:, :] = 0.0
+        for q in range(n_qp):
+            if dim == 2:
+                plane_add_btcb(grads[e, q], wdet[e, q], d, 2, db, ke)
+            else:
+                b_matrix(grads[e, q], b)
+                add_btcb(b, wdet[e, q], d, idx, db, ke)
         for i in range(nd):
             for j in range(nd):
                 data[slots[e, i, j]] += ke[i, j]

@@ -201,7 +201,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     case_sha = checkpoint.text_sha256(case_text)
     (out / "case.toml").write_text(case_text, encoding="utf-8")
     keep = start.count if start is not None else None
-    peaks = {"F_axial": float(counters["peak"])} if counters.get("peak", -np.inf) > -np.inf else {}
+    # the peak magnitudes the stop rules have seen (checkpointed as run.stop_peak.<quantity>)
+    peaks = {k.removeprefix("stop_peak."): float(v) for k, v in counters.items() if k.startswith("stop_peak.")}
     run = {"iters": int(counters.get("iters", 0)), "last": keep or 0}
     log = RunLog(out / "run.log", keep, lambda: [line for g in built.model.groups for line in g.event_log()])
     observers: list[Observer] = []
@@ -219,10 +220,11 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         observers.append(log)
         if progress is not None:
             observers.append(Progress(progress))
-        axial_peak = {"F_axial": peaks.get("F_axial", -np.inf)}
+        axial_peak = {"F_axial": float(counters.get("peak", -np.inf))}
 
         def counts() -> dict[str, float]:
-            return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work}
+            return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work,
+                    **{f"stop_peak.{q}": v for q, v in peaks.items()}}
 
         observers.append(Checkpoints(out, case.output.checkpoint_every, built.model.groups, counts, hist, case_sha,
                                      log))

@@ -106,15 +106,16 @@ def resolve(case: Case, path: str = "<case>") -> Case:
         load = load.model_copy(update={"path_increment": load.path_increment or nominal,
                                        "max_steps": load.max_steps or 20 * load.axial_steps})
         case = case.model_copy(update={"loading": load})
-    if case.stages is not None and any(s.control == "path" for s in case.stages):
+    if case.stages is not None and any(s.control != "load" for s in case.stages):
         stages = []
         for k, (st, change) in enumerate(zip(case.stages, _displacement_changes(case.stages))):
             if st.control == "path" and st.path_increment is None and change == 0.0:
                 raise CaseError(f"{path}: [stages {k + 1}] path_increment: needed, since the stage prescribes no "
                                 "displacement change to take the nominal increment from")
             if st.control == "path":
-                st = st.model_copy(update={"path_increment": st.path_increment or change / st.steps,
-                                           "max_steps": st.max_steps or 20 * st.steps})
+                st = st.model_copy(update={"path_increment": st.path_increment or change / st.steps})
+            if st.control != "load":
+                st = st.model_copy(update={"max_steps": st.max_steps or 20 * st.steps})
             stages.append(st)
         case = case.model_copy(update={"stages": stages})
     if not any(c.form is CohesiveForm.rp and c.augmentation is None for c in case.cohesive_sets):

@@ -31,7 +31,7 @@ from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import cell_sides, match, on_boundary, outer_boundary
 from rockfrac.model import Model
 from rockfrac.output.history import Monitor
-from rockfrac.solve.stepping import PathSpec, Stage
+from rockfrac.solve.stepping import Measure, PathSpec, Stage, arc_length_path, crack_path
 from rockfrac.values import given
 
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
@@ -226,21 +226,36 @@ def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, 
     return f
 
 
-def path_spec(stage: StageSection, surfaces: list[ElementGroup], n_dofs: int, key: str,
-              path: str) -> PathSpec | None:
-    """Path following on the discontinuities' jumps (cohesive pairs or embedded cells)."""
-    if stage.control != "path":
+def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_dofs: int, monitors: list[Monitor],
+              key: str, path: str) -> PathSpec | None:
+    """The stage's path following: on the discontinuities' jumps (cohesive pairs or embedded cells),
+    on an opening monitor, or on the arc length."""
+    if stage.control == "load":
         return None
+    if stage.max_steps is None:
+        raise CaseError(f"{path}: {key}: max_steps is not resolved")
+    if stage.control == "arc_length":
+        return arc_length_path(mesh.dim * mesh.n_nodes, stage.path_increment, stage.max_steps)
+    if stage.control == "opening":
+        found = {m.name: m for m in monitors}
+        m = found.get(stage.monitor or "")
+        if m is None or m.direction is None:
+            openings = sorted(n for n, v in found.items() if v.direction is not None)
+            raise CaseError(f"{path}: {key} monitor = {stage.monitor!r}: not an opening monitor of [[monitors]] "
+                            f"(openings: {', '.join(openings) or 'none'})")
+        return crack_path(lambda: opening_measure(m, mesh.dim, n_dofs), stage.path_increment, lambda: True,
+                          stage.max_steps, f"opening {m.name}", rigid_ok=True)
     if not surfaces:
         raise CaseError(f"{path}: {key} control = 'path' needs a cohesive surface or an [embedded] section")
-    if stage.path_increment is None or stage.max_steps is None:
-        raise CaseError(f"{path}: {key}: path_increment and max_steps are not resolved")
+    if stage.path_increment is None:
+        raise CaseError(f"{path}: {key}: path_increment is not resolved")
 
-    def measure():
-        parts = [g.path_measure(n_dofs) for g in surfaces]
-        if len(parts) == 1:
-            return parts[0]
-        w = np.array([g.path_weight() for g in surfaces], dtype=float)
+    def measure() -> Measure | None:
+        found = [(m, g.path_weight()) for g in surfaces if (m := g.path_measure(n_dofs)) is not None]
+        if len(found) <= 1:
+            return found[0][0] if found else None
+        parts = [m for m, _ in found]
+        w = np.array([wt for _, wt in found], dtype=float)
         w /= w.sum()
 
         def combined(u: np.ndarray) -> tuple[float, np.ndarray]:
@@ -249,8 +264,18 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], n_dofs: int, ke
 
         return combined
 
-    return PathSpec(measure, stage.path_increment, lambda: any(g.path_active() for g in surfaces),
-                    stage.max_steps)
+    return crack_path(measure, stage.path_increment, lambda: any(g.path_active() for g in surfaces),
+                      stage.max_steps)
+
+
+def opening_measure(m: Monitor, dim: int, n_dofs: int) -> Measure:
+    """g(u) = e . (mean u of nodes[1] - mean u of nodes[0]): the monitor's opening [m], linear in u."""
+    assert m.direction is not None
+    grad = np.zeros(n_dofs)
+    for sign, ids in ((-1.0, m.nodes[0]), (1.0, m.nodes[1])):
+        for a in range(dim):
+            np.add.at(grad, ids * dim + a, sign * m.direction[a] / ids.shape[0])
+    return lambda u: (float(grad @ u), grad)
 
 
 def _source(stage: StageSection, key: str, path: str) -> str:
@@ -268,6 +293,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
     """The engine stages of the case's loading program and its state at t = 0."""
     dim = mesh.dim
     surfaces = cohesives or [g for g in bulks if g.kind == "embedded"]
+    monitors = resolve_monitors(case, mesh, path)
     if case.bulk is not None:
         densities = {b.region: case.bulk.density for b in bulks}
     else:
@@ -354,7 +380,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         dofs = np.array(sorted(presc), dtype=np.int64)
         values = np.array([presc[d] for d in dofs.tolist()])
         name = st.name or f"stage {k + 1}"
-        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, model.n_dofs, key, path),
+        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model.n_dofs, monitors, key, path),
                             source=source, dirichlet=dofs))
         stops.append(st.stop)
         sections.append(st)

@@ -51,12 +51,21 @@ class StageSection(_Section):
     name: str | None = Field(None, min_length=1, max_length=100, description="the stage's name (default "
                              "'stage N')")
     steps: Count = Field(1, description="load-controlled steps (the nominal increment is 1/steps of the stage)")
-    control: Literal["load", "path"] = Field("load", description="'load': the load factor is prescribed; "
-                                             "'path': once a crack yields, each step prescribes an increment of "
-                                             "its mean opening and the load factor is solved for")
-    path_increment: Length | None = Field(None, description="path control: increment of the crack opening "
-                                          "measure per step [m] (default: from the stage's displacements)")
-    max_steps: Count | None = Field(None, description="path control: most steps of the stage (default 20 x steps)")
+    control: Literal["load", "path", "opening", "arc_length"] = Field(
+        "load", description="'load': the load factor is prescribed; 'path': once a crack yields, each step "
+        "prescribes an increment of its mean opening; 'opening': each step prescribes an increment of the opening "
+        "monitor named by 'monitor' (e.g. a CMOD); 'arc_length': each step prescribes an increment of the "
+        "displacement along the last step's direction (the first step is load-controlled); in the last three "
+        "the load factor is solved for, so it may fall after a peak and rise again")
+    monitor: str | None = Field(None, min_length=1, max_length=100, description="control = 'opening': the name "
+                                "of the [[monitors]] opening it prescribes")
+    path_increment: Length | None = Field(None, description="increment per step [m] of the crack opening "
+                                          "(path; default from the stage's displacements), the monitor's "
+                                          "opening (opening) or the root-mean-square nodal displacement along "
+                                          "the path (arc_length); default for the last two: its change over a "
+                                          "nominal load step, from the first step")
+    max_steps: Count | None = Field(None, description="path, opening or arc_length control: most steps of the "
+                                    "stage (default 20 x steps)")
     displacement: dict[GroupName, dict[Component, Displacement | Literal["free"]]] = Field(
         default_factory=dict, description="node group -> component -> prescribed value at the stage end [m], "
         "or 'free' to release it")
@@ -91,10 +100,13 @@ class StageSection(_Section):
         for name, f in self.in_situ.items():
             if not 0.0 <= f <= MAX_FACTOR:
                 raise ValueError(f"in_situ.{name}: a factor from 0 to {MAX_FACTOR:g} (got {f:g})")
-        if self.control != "path":
+        if self.control == "load":
             given = [k for k in ("path_increment", "max_steps") if getattr(self, k) is not None]
             if given:
-                raise ValueError(f"{', '.join(given)} only apply to control = 'path'")
+                raise ValueError(f"{', '.join(given)} only apply to control = 'path', 'opening' or 'arc_length'")
+        if (self.control == "opening") != (self.monitor is not None):
+            raise ValueError("control = 'opening' takes monitor = '<name of an opening monitor>'; monitor applies "
+                             "to no other control")
         return self
 
 

@@ -141,6 +141,10 @@ def position_arrays(p: Position) -> dict[str, np.ndarray]:
            "d_start": p.d_start if p.d_start is not None else np.zeros(0)}
     if p.f_int is not None:
         out["f_int"] = p.f_int
+    if p.u_before is not None:
+        out["u_before"] = p.u_before
+    if p.path_nominal is not None:
+        out["path_nominal"] = np.array(p.path_nominal)
     return out
 
 
@@ -149,7 +153,9 @@ def position_from_arrays(a: dict[str, np.ndarray]) -> Position:
     size = {"load": float(a["size_load"]), "path": float(a["size_path"])} if bool(a["has_size"]) else {}
     return Position(int(a["stage"]), float(a["lam"]), a["u"].astype(float), int(a["count"]), int(a["stage_steps"]),
                     size, bool(a["forced"]), a["d_start"].astype(float) if bool(a["has_d_start"]) else None,
-                    a["f_int"].astype(float) if "f_int" in a else None)
+                    a["f_int"].astype(float) if "f_int" in a else None,
+                    a["u_before"].astype(float) if "u_before" in a else None,
+                    float(a["path_nominal"]) if "path_nominal" in a else None)
 
 
 class Checkpoints(Observer):

@@ -5,7 +5,9 @@ and external forces f(lam) = f0 + lam df. Under load control lam is given; under
 (indirect displacement control) lam is an extra unknown fixed by a scalar constraint
 g(u) = target, solved with the bordered scheme: two right-hand sides on one factorization.
 Where g does not respond to lam at all (a rigid-plastic surface still fully constrained), the
-iteration takes a load-controlled predictor increment instead, until the surface yields.
+iteration takes a load-controlled predictor increment instead, until the surface yields; with
+``rigid_ok`` (an opening between two points held shut by such a surface) the step then converges as
+a load step of that increment.
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
@@ -82,6 +84,7 @@ class PathControl:
     target: float
     tolerance: float  # absolute tolerance on g - target
     predictor: float = 0.0  # load-factor increment of an iteration where g does not respond to lam
+    rigid_ok: bool = False  # True: a step in which g cannot respond (rigid) converges as a load step
 
 
 @dataclass
@@ -127,6 +130,7 @@ def newton_step(
     last_du = None
     rel = np.inf
     pending = None  # the assembly at u made by the line search
+    rigid = False  # the last correction could not move g (it pushed the load by control.predictor)
 
     def relative(asm, f_ext) -> float:
         ref = max(_norm(f_ext[free]), _norm(asm.residual[dofs_d]), options.force_scale)
@@ -157,7 +161,7 @@ def newton_step(
         g_ok = True
         if control is not None:
             g, grad = control.measure(u)
-            g_ok = abs(g - control.target) <= control.tolerance
+            g_ok = abs(g - control.target) <= control.tolerance or (control.rigid_ok and rigid)
         if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
                 and not np.any(mismatch)):
             # the loads did not change over the step (a held stage): the start is the equilibrium; a
@@ -173,7 +177,10 @@ def newton_step(
             # a state switch in this iterate (constrained <-> plastic) is part of the residual just
             # computed (multiplier rows included), so a small residual is an equilibrium of it: a
             # point sitting on its yield surface (dgamma ~ 0) may flip without holding convergence up
-            if (rel <= options.tol_residual and rel_e <= options.tol_energy and g_ok
+            # a rigid load step under an opening control is linear from an equilibrium: the energy of
+            # its (round-off) residual relative to round-off says nothing
+            held = control is not None and control.rigid_ok and rigid
+            if (rel <= options.tol_residual and (rel_e <= options.tol_energy or held) and g_ok
                     and asm.local_residual <= options.tol_residual):
                 result.converged = True
                 result.iterations = it
@@ -198,7 +205,8 @@ def newton_step(
             if control is not None:
                 du_b = lu.solve(rhs_b)
                 slope = _dot(grad, du_b)
-                if abs(slope) > 1e-12 * _norm(grad) * _norm(du_b):
+                rigid = not abs(slope) > 1e-12 * _norm(grad) * _norm(du_b)
+                if not rigid:
                     dlam = (control.target - g - _dot(grad, du)) / slope
                 else:  # rigid (all constrained): g cannot move yet, so push the load instead
                     dlam = control.predictor

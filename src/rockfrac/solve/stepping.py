@@ -4,8 +4,11 @@ A stage ramps the prescribed displacements and the external forces from their va
 start to its end values with a load factor lam: 0 -> 1. Steps are load-controlled (lam given)
 until the stage's ``path`` (if any) becomes active, or a load-controlled step fails where the
 path is available (a limit point, or a snap-back at activation); from then on each step prescribes an
-increment of a path measure (e.g. the mean crack jump along the flow directions) and lam is solved for, so limit points
-and snap-backs are traced. A step in which an event indicator of the model (the loss of
+increment of a path measure and lam is solved for, so limit points and snap-backs are traced. The
+measure is the mean crack jump along the flow directions, the opening between two points (CMOD), or
+the arc length: the projection of the displacement on the direction of the last converged increment
+(a linearised arc length, Riks' normal plane updated every step; the stage's first step is
+load-controlled and sets the direction). A step in which an event indicator of the model (the loss of
 ellipticity of a Drucker-Prager cell) crosses zero is shortened to end at the event. Each
 converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
@@ -24,14 +27,50 @@ from rockfrac.solve.linear import LinearSolver
 from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step
 
 
+Measure = Callable[[np.ndarray], tuple[float, np.ndarray]]  # g(u) and dg/du (dense, n_dofs)
+
+
 @dataclass(frozen=True)
 class PathSpec:
-    """Indirect displacement control of a stage once ``active()`` is true."""
+    """Indirect displacement control of a stage once ``active()`` is true.
 
-    measure: Callable[[], Callable[[np.ndarray], tuple[float, np.ndarray]]]  # fresh g(u) per step
-    increment: float  # nominal increment of the measure per step
+    measure(u, u_before): g(u) for the next step, from the committed u and the u committed one step
+    before (None at the stage start); None if it cannot be defined yet (a load-controlled step then).
+    increment: nominal increment of g per step; None: the change of g over the stage's first step.
+    """
+
+    measure: Callable[[np.ndarray, np.ndarray | None], Measure | None]
+    increment: float | None
     active: Callable[[], bool]  # evaluated on the committed state
     max_steps: int
+    name: str = "crack jump"
+    rigid_ok: bool = False  # a step where g cannot move (held shut by rigid surfaces) is a load step
+
+
+def crack_path(measure: Callable[[], Measure | None], increment: float | None, active: Callable[[], bool],
+               max_steps: int, name: str = "crack jump", rigid_ok: bool = False) -> PathSpec:
+    """A path on a measure that does not depend on the step history (crack jumps, an opening)."""
+    return PathSpec(lambda u, before: measure(), increment, active, max_steps, name, rigid_ok)
+
+
+def arc_length_path(n_displacements: int, increment: float | None, max_steps: int) -> PathSpec:
+    """The linearised arc length over the first ``n_displacements`` dofs (the nodal displacements):
+    g(u) = t . u / sqrt(n), t the unit direction of the last converged increment, so that an
+    increment of g is the root-mean-square nodal displacement along the path [m]."""
+    scale = 1.0 / np.sqrt(n_displacements)
+
+    def measure(u: np.ndarray, before: np.ndarray | None) -> Measure | None:
+        if before is None:
+            return None
+        t = np.zeros(u.shape[0])
+        t[:n_displacements] = u[:n_displacements] - before[:n_displacements]
+        norm = np.linalg.norm(t)
+        if norm == 0.0:
+            return None
+        t *= scale / norm
+        return lambda v: (float(t @ v), t)
+
+    return PathSpec(measure, increment, lambda: True, max_steps, "arc length")
 
 
 @dataclass(frozen=True)
@@ -87,6 +126,8 @@ class Position:
     forced: bool  # path control taken over after a failed load step
     d_start: np.ndarray | None = None  # prescribed values at the start of the current stage
     f_int: np.ndarray | None = None  # internal forces of the last converged step
+    u_before: np.ndarray | None = None  # u one converged step earlier in this stage (arc length)
+    path_nominal: float | None = None  # the stage's nominal path increment, once known
 
 
 @dataclass
@@ -171,24 +212,30 @@ def run_stages(
         d_end = stage.end_values(dofs, d_start)
         loads = Loads(d_start, d_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
-        nominal = {"load": 1.0 / stage.steps, "path": stage.path.increment if stage.path else 0.0}
+        path_nominal = stage.path.increment if stage.path else None
+        nominal = {"load": 1.0 / stage.steps, "path": path_nominal or 0.0}
         size = dict(nominal)
         forced = False  # path control taken over after a failed load-controlled step
+        u_before: np.ndarray | None = None
         if start is not None and index == start.stage:
             lam, stage_steps, size, forced = start.lam, start.stage_steps, dict(start.size or nominal), start.forced
+            u_before, path_nominal = start.u_before, start.path_nominal or path_nominal
+            nominal["path"] = path_nominal or 0.0
         while lam < 1.0 - 1e-12:
             if should_stop is not None and should_stop():
                 return stopped(stage)
-            use_path = stage.path is not None and (forced or stage.path.active())
-            mode = "path" if use_path else "load"
-            if use_path:
-                assert stage.path is not None
-                measure = stage.path.measure()  # directions frozen at the committed state
+            measure = None
+            if stage.path is not None and (forced or stage.path.active()):
+                measure = stage.path.measure(u, u_before)  # frozen at the committed state
+            if measure is not None and path_nominal is None:
+                measure = None  # the nominal increment comes from the first step
+            mode = "path" if measure is not None else "load"
+            if measure is not None:
                 g_now, _ = measure(u)
                 target = g_now + size["path"]
-                ctrl = PathControl(measure, target, 1e-9 * nominal["path"], size["load"])
+                ctrl = PathControl(measure, target, 1e-9 * nominal["path"], size["load"], stage.path is not None and stage.path.rigid_ok)
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
-                if res.converged and res.lam > 1.0:  # land exactly on the stage end
+                if res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
             else:
                 size["load"] = min(size["load"], 1.0 - lam)
@@ -197,7 +244,7 @@ def run_stages(
             if res.interrupted:
                 return stopped(stage)
             if (not res.converged and mode == "load" and stage.path is not None and not forced
-                    and np.any(stage.path.measure()(u)[1])):
+                    and (m := stage.path.measure(u, u_before)) is not None and np.any(m(u)[1])):
                 # a limit point under load control, and a path measure that can respond (a
                 # discontinuity exists): follow the path from here; otherwise cut the load step back
                 forced = True
@@ -225,7 +272,13 @@ def run_stages(
                     size[mode] *= frac
                     continue
             model.commit()
-            u, lam = res.u, res.lam
+            if stage.path is not None and path_nominal is None:
+                first = stage.path.measure(res.u, u)
+                change = 0.0 if first is None else abs(first(res.u)[0] - first(u)[0])
+                if change > 0.0:  # the measure's change over a nominal load step, from the first step
+                    path_nominal = change * nominal["load"] / (res.lam - lam)
+                    nominal["path"] = size["path"] = path_nominal
+            u_before, u, lam = u, res.u, res.lam
             count += 1
             stage_steps += 1
             step_cutbacks, cutbacks = cutbacks, 0
@@ -234,7 +287,8 @@ def run_stages(
             done = lam >= 1.0 - 1e-12
             position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,
                                 0 if done else stage_steps, {} if done else dict(size), False if done else forced,
-                                None if done else d_start, res.f_int)
+                                None if done else d_start, res.f_int, None if done else u_before,
+                                None if done else path_nominal)
             assert res.f_int is not None  # a converged step has its internal forces
             try:
                 on_step(StepInfo(stage.name, count, lam, u, res.f_int, res, step_cutbacks, mode, position,

@@ -1,5 +1,5 @@
-"""Stage controls beyond the load factor: an opening between two points (CMOD) and the arc length,
-against closed forms, through peaks and snap-backs; their checkpoints resume bit for bit; their
+"""Stage controls beyond the load factor: an opening between two points (CMOD), the arc length and
+the energy released, against closed forms, through peaks and snap-backs; their checkpoints resume bit for bit; their
 inputs are checked."""
 
 from __future__ import annotations
@@ -99,6 +99,70 @@ def test_arc_length_of_an_elastic_bar_takes_equal_steps_to_the_stage_end(tmp_pat
     assert h["load_factor"][-1] == 1.0
 
 
+def test_energy_control_traces_the_snap_back_of_a_force_loaded_bar(tmp_path):
+    data = data_of("path_following/bar_energy.toml")
+    stage = data["stages"][0]
+    s, h = run(data, tmp_path / "o")
+    assert s.result.completed and "fell below 0.3" in s.result.message
+    c, b, big_l = data["cohesive"], data["bulk"], data["mesh"]["height"]
+    end = stage["traction"]["top"][1]
+    lam, u = h["load_factor"], h["u_top_y"]
+    sigma = lam * end
+    pl = h["n_plastic"] > 0
+    # load steps until the crack yields, then every step releases exactly the increment:
+    # [(f_n - f_0) . u - (f - f_0) . u_n] / 2 with f = lam x (the traction's nodal forces); the top
+    # moves as one, so f . u = lam end width u_top
+    assert set(h["control"][~pl]) == {"load"} and set(h["control"][pl][1:]) == {"path"}
+    force = end * data["mesh"]["width"]
+    released = 0.5 * force * (lam[:-1] * u[1:] - lam[1:] * u[:-1])
+    path = h["control"][1:] == "path"
+    np.testing.assert_allclose(released[path], stage["path_increment"], rtol=1e-6)
+    # through the snap-back (neither load nor arc-length control follows it) on the closed form
+    assert np.max(np.abs(u[pl] - bar_closed_form(data, sigma[pl]))) < 0.006 * u.max()
+    e1 = b["E"] / (1 - b["nu"] ** 2)
+    s_star = math.sqrt(c["GfI"] * e1 / (c["alpha_chi"] * big_l))
+    assert np.any(np.diff(u[pl]) < 0)
+    assert u[pl].min() == pytest.approx(float(bar_closed_form(data, np.array(s_star))), rel=1e-2)
+    assert np.abs(h["energy_error"]).max() < 1e-9 * h["W_external"].max()
+
+
+def test_energy_released_is_zero_on_an_elastic_path_from_a_prestressed_state():
+    """g = [(f_n - f_0) . (u - u_0) - (f - f_0) . (u_n - u_0)] / 2 vanishes on any two states of a
+    linear body f = f_0 + K (u - u_0) (K symmetric), whatever the initial state (in-situ forces f_0,
+    displacements u_0); it is the secant dissipation of a damaged one."""
+    from rockfrac.solve.newton import Loads
+    from rockfrac.solve.paths import Committed, energy_path
+
+    rng = np.random.default_rng(3)
+    n = 6
+    m = rng.normal(size=(n, n))
+    k = m @ m.T + n * np.eye(n)
+    u_ref, f_ref = rng.normal(size=n), rng.normal(size=n)
+    f0, df = f_ref + rng.normal(size=n), rng.normal(size=n)
+    loads = Loads(np.zeros(0), np.zeros(0), f0, df)
+
+    def state(lam, stiffness):
+        return u_ref + np.linalg.solve(stiffness, loads.forces(lam) - f_ref)
+
+    spec = energy_path(n, 2.0, 1.0, lambda: True, 10)
+    c = spec.constraint(Committed(state(0.3, k), None, 0.3, loads, u_ref, f_ref))
+    assert c is not None
+    for lam in (0.1, 0.5, 2.0):
+        assert abs(c.value(state(lam, k), lam)) < 1e-12 * np.abs(f0).max() * np.abs(state(lam, k)).max()
+        # its gradients are those of the formula
+        du = rng.normal(size=n) * 1e-3
+        g0 = c.value(state(lam, k), lam)
+        assert c.value(state(lam, k) + du, lam + 1e-3) - g0 == pytest.approx(
+            float(c.measure(state(lam, k))[1] @ du) + c.lam_coeff * 1e-3, rel=1e-9)
+    # a body that softened to half its stiffness releases, from lam_n on the secant, the energy
+    # between the two secants: (f_n - f_ref) . (K_s^-1 - K^-1) (f_n - f_ref) / 4 at lam = lam_n
+    lam = 0.3
+    u_soft = state(lam, 0.5 * k)
+    df_n = loads.forces(lam) - f_ref
+    expected = 0.25 * df_n @ (np.linalg.solve(0.5 * k, df_n) - np.linalg.solve(k, df_n))
+    assert c.value(u_soft, lam) == pytest.approx(expected, rel=1e-10)
+
+
 def test_cmod_controlled_beam_dissipates_gc_times_the_ligament(tmp_path):
     from rockfrac.mesh import rock_tests as rt
 
@@ -158,8 +222,11 @@ def test_arc_length_checkpoint_resumes_bit_for_bit(tmp_path):
     ({"monitor": "top_point"}, "monitor = 'top_point': not an opening monitor"),
     ({"control": "load", "path_increment": None, "max_steps": None}, "control = 'opening' takes monitor"),
     ({"control": "load", "monitor": None}, "path_increment, max_steps only apply to control = 'path', "
-                                           "'opening' or 'arc_length'"),
+                                           "'opening', 'arc_length' or 'energy'"),
     ({"control": "arc"}, "control"),
+    ({"control": "energy", "monitor": None}, "control = 'energy': the stage moves prescribed displacements"),
+    ({"control": "energy", "monitor": None, "path_increment": None}, "path_increment: control = 'energy' needs the "
+                                                                      "energy released per step"),
 ])
 def test_bad_control_inputs_are_named(tmp_path, change, message):
     data = data_of("path_following/bar_opening.toml")

@@ -139,8 +139,8 @@ def build(case: Case, path: str = "<case>") -> Built:
         cohesives += cohesive_groups(section, interface_points(mesh.nodes, mesh.interfaces[cells]), mesh,
                                      f"cohesive {k + 1}")
     model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
-    program = build_program(case, mesh, model, bulks, cohesives, path)
+    thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
+    program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
-    thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     return Built(case, mesh, model, program, thickness, bulks, cohesives)

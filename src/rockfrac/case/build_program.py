@@ -31,7 +31,9 @@ from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import cell_sides, match, on_boundary, outer_boundary
 from rockfrac.model import Model
 from rockfrac.output.history import Monitor
-from rockfrac.solve.stepping import Measure, PathSpec, Stage, arc_length_path, crack_path
+from rockfrac.solve.newton import Measure
+from rockfrac.solve.paths import PathSpec, arc_length_path, crack_path, energy_path
+from rockfrac.solve.stepping import Stage
 from rockfrac.values import given
 
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
@@ -227,15 +229,21 @@ def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, 
 
 
 def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_dofs: int, monitors: list[Monitor],
-              key: str, path: str) -> PathSpec | None:
+              thickness: float, key: str, path: str) -> PathSpec | None:
     """The stage's path following: on the discontinuities' jumps (cohesive pairs or embedded cells),
-    on an opening monitor, or on the arc length."""
+    on an opening monitor, on the arc length or on the energy released."""
     if stage.control == "load":
         return None
     if stage.max_steps is None:
         raise CaseError(f"{path}: {key}: max_steps is not resolved")
     if stage.control == "arc_length":
         return arc_length_path(mesh.dim * mesh.n_nodes, stage.path_increment, stage.max_steps)
+    if stage.control == "energy":
+        if stage.path_increment is None:
+            raise CaseError(f"{path}: {key} path_increment: control = 'energy' needs the energy released per step "
+                            "[J/m in 2D (per unit thickness), J in 3D]")
+        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment,
+                           lambda: any(g.path_active() for g in surfaces), stage.max_steps)
     if stage.control == "opening":
         found = {m.name: m for m in monitors}
         m = found.get(stage.monitor or "")
@@ -268,6 +276,17 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_d
                       stage.max_steps)
 
 
+def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None, key: str, path: str) -> None:
+    """control = 'energy' counts the work of the forces alone: every prescribed displacement of the
+    stage must be 0 from its start (the supports' reactions then do no work)."""
+    moving = sorted(d for d, v in presc.items() if v != 0.0 or (held is not None and held.get(d) != 0.0))
+    if moving:
+        raise CaseError(f"{path}: {key} control = 'energy': the stage moves prescribed displacements (dof "
+                        f"{moving[0]}{' and others' if len(moving) > 1 else ''}: nonzero, or not held at 0 before "
+                        "the stage); the energy released is that of forces on supports held at 0. Drive a "
+                        "displacement-loaded stage with control = 'path', 'opening' or 'arc_length'")
+
+
 def opening_measure(m: Monitor, dim: int, n_dofs: int) -> Measure:
     """g(u) = e . (mean u of nodes[1] - mean u of nodes[0]): the monitor's opening [m], linear in u."""
     assert m.direction is not None
@@ -289,7 +308,8 @@ def _source(stage: StageSection, key: str, path: str) -> str:
     return f"{path}: {key} ({'; '.join(parts) or 'held loads'})"
 
 
-def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: list, path: str) -> Program:
+def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: list, thickness: float,
+                  path: str) -> Program:
     """The engine stages of the case's loading program and its state at t = 0."""
     dim = mesh.dim
     surfaces = cohesives or [g for g in bulks if g.kind == "embedded"]
@@ -334,6 +354,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
     gravity = g0.copy()
     stages, stops, sections = [], [], []
     for k, ((st, source), key) in enumerate(zip(pairs, keys)):
+        held = dict(presc) if k > 0 else None  # the prescribed values the stage starts from (None: u = 0)
         for group, comps in st.displacement.items():
             require([group], mesh.node_sets, "node group", f"{key} displacement", path)
             nodes = mesh.node_sets[group]
@@ -379,8 +400,11 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         f_full[: f_end.shape[0]] = f_end
         dofs = np.array(sorted(presc), dtype=np.int64)
         values = np.array([presc[d] for d in dofs.tolist()])
+        if st.control == "energy":
+            _check_still_supports(presc, held, key, path)
         name = st.name or f"stage {k + 1}"
-        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model.n_dofs, monitors, key, path),
+        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model.n_dofs, monitors, thickness,
+                                                                 key, path),
                             source=source, dirichlet=dofs))
         stops.append(st.stop)
         sections.append(st)

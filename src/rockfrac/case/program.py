@@ -51,21 +51,24 @@ class StageSection(_Section):
     name: str | None = Field(None, min_length=1, max_length=100, description="the stage's name (default "
                              "'stage N')")
     steps: Count = Field(1, description="load-controlled steps (the nominal increment is 1/steps of the stage)")
-    control: Literal["load", "path", "opening", "arc_length"] = Field(
+    control: Literal["load", "path", "opening", "arc_length", "energy"] = Field(
         "load", description="'load': the load factor is prescribed; 'path': once a crack yields, each step "
         "prescribes an increment of its mean opening; 'opening': each step prescribes an increment of the opening "
         "monitor named by 'monitor' (e.g. a CMOD); 'arc_length': each step prescribes an increment of the "
-        "displacement along the last step's direction (the first step is load-controlled); in the last three "
-        "the load factor is solved for, so it may fall after a peak and rise again")
+        "displacement along the last step's direction (the first step is load-controlled); 'energy': once a crack "
+        "yields (or a load step fails at a limit point), each step prescribes the energy released (force-driven "
+        "stages on supports held at 0); in all but 'load' the load factor is solved for, so it may fall after a "
+        "peak and rise again")
     monitor: str | None = Field(None, min_length=1, max_length=100, description="control = 'opening': the name "
                                 "of the [[monitors]] opening it prescribes")
     path_increment: Length | None = Field(None, description="increment per step [m] of the crack opening "
                                           "(path; default from the stage's displacements), the monitor's "
                                           "opening (opening) or the root-mean-square nodal displacement along "
-                                          "the path (arc_length); default for the last two: its change over a "
-                                          "nominal load step, from the first step")
-    max_steps: Count | None = Field(None, description="path, opening or arc_length control: most steps of the "
-                                    "stage (default 20 x steps)")
+                                          "the path (arc_length); default for these two: its change over a "
+                                          "nominal load step, from the first step; the energy released per step "
+                                          "(energy) [J/m per unit thickness in 2D, J in 3D], needed")
+    max_steps: Count | None = Field(None, description="path, opening, arc_length or energy control: most steps "
+                                    "of the stage (default 20 x steps)")
     displacement: dict[GroupName, dict[Component, Displacement | Literal["free"]]] = Field(
         default_factory=dict, description="node group -> component -> prescribed value at the stage end [m], "
         "or 'free' to release it")
@@ -103,7 +106,11 @@ class StageSection(_Section):
         if self.control == "load":
             given = [k for k in ("path_increment", "max_steps") if getattr(self, k) is not None]
             if given:
-                raise ValueError(f"{', '.join(given)} only apply to control = 'path', 'opening' or 'arc_length'")
+                raise ValueError(f"{', '.join(given)} only apply to control = 'path', 'opening', 'arc_length' or "
+                                 "'energy'")
+        if self.control == "energy" and self.path_increment is None:
+            raise ValueError("path_increment: control = 'energy' needs the energy released per step [J/m in 2D (per "
+                             "unit thickness), J in 3D]")
         if (self.control == "opening") != (self.monitor is not None):
             raise ValueError("control = 'opening' takes monitor = '<name of an opening monitor>'; monitor applies "
                              "to no other control")

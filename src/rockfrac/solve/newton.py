@@ -76,15 +76,19 @@ class Loads:
         return self.f0 + lam * self.df
 
 
+Measure = Callable[[np.ndarray], tuple[float, np.ndarray]]  # u -> (g, dg/du dense over the dofs)
+
+
 @dataclass(frozen=True)
 class PathControl:
-    """Scalar constraint g(u) = target; ``measure(u)`` returns g and dg/du (dense, n_dofs)."""
+    """Scalar constraint g(u, lam) = measure(u)[0] + lam_coeff lam = target."""
 
-    measure: Callable[[np.ndarray], tuple[float, np.ndarray]]
+    measure: Measure
     target: float
     tolerance: float  # absolute tolerance on g - target
     predictor: float = 0.0  # load-factor increment of an iteration where g does not respond to lam
     rigid_ok: bool = False  # True: a step in which g cannot respond (rigid) converges as a load step
+    lam_coeff: float = 0.0  # dg/dlam
 
 
 @dataclass
@@ -161,6 +165,8 @@ def newton_step(
         g_ok = True
         if control is not None:
             g, grad = control.measure(u)
+            if control.lam_coeff:
+                g += control.lam_coeff * u_lam
             g_ok = abs(g - control.target) <= control.tolerance or (control.rigid_ok and rigid)
         if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
                 and not np.any(mismatch)):
@@ -204,7 +210,7 @@ def newton_step(
             du = lu.solve(rhs)
             if control is not None:
                 du_b = lu.solve(rhs_b)
-                slope = _dot(grad, du_b)
+                slope = _dot(grad, du_b) + control.lam_coeff
                 rigid = not abs(slope) > 1e-12 * _norm(grad) * _norm(du_b)
                 if not rigid:
                     dlam = (control.target - g - _dot(grad, du)) / slope

@@ -4,11 +4,8 @@ A stage ramps the prescribed displacements and the external forces from their va
 start to its end values with a load factor lam: 0 -> 1. Steps are load-controlled (lam given)
 until the stage's ``path`` (if any) becomes active, or a load-controlled step fails where the
 path is available (a limit point, or a snap-back at activation); from then on each step prescribes an
-increment of a path measure and lam is solved for, so limit points and snap-backs are traced. The
-measure is the mean crack jump along the flow directions, the opening between two points (CMOD), or
-the arc length: the projection of the displacement on the direction of the last converged increment
-(a linearised arc length, Riks' normal plane updated every step; the stage's first step is
-load-controlled and sets the direction). A step in which an event indicator of the model (the loss of
+increment of a path measure (:mod:`rockfrac.solve.paths`) and lam is solved for, so limit points
+and snap-backs are traced. A step in which an event indicator of the model (the loss of
 ellipticity of a Drucker-Prager cell) crosses zero is shortened to end at the event. Each
 converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
@@ -25,52 +22,7 @@ import numpy as np
 from rockfrac.model import Model
 from rockfrac.solve.linear import LinearSolver
 from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step
-
-
-Measure = Callable[[np.ndarray], tuple[float, np.ndarray]]  # g(u) and dg/du (dense, n_dofs)
-
-
-@dataclass(frozen=True)
-class PathSpec:
-    """Indirect displacement control of a stage once ``active()`` is true.
-
-    measure(u, u_before): g(u) for the next step, from the committed u and the u committed one step
-    before (None at the stage start); None if it cannot be defined yet (a load-controlled step then).
-    increment: nominal increment of g per step; None: the change of g over the stage's first step.
-    """
-
-    measure: Callable[[np.ndarray, np.ndarray | None], Measure | None]
-    increment: float | None
-    active: Callable[[], bool]  # evaluated on the committed state
-    max_steps: int
-    name: str = "crack jump"
-    rigid_ok: bool = False  # a step where g cannot move (held shut by rigid surfaces) is a load step
-
-
-def crack_path(measure: Callable[[], Measure | None], increment: float | None, active: Callable[[], bool],
-               max_steps: int, name: str = "crack jump", rigid_ok: bool = False) -> PathSpec:
-    """A path on a measure that does not depend on the step history (crack jumps, an opening)."""
-    return PathSpec(lambda u, before: measure(), increment, active, max_steps, name, rigid_ok)
-
-
-def arc_length_path(n_displacements: int, increment: float | None, max_steps: int) -> PathSpec:
-    """The linearised arc length over the first ``n_displacements`` dofs (the nodal displacements):
-    g(u) = t . u / sqrt(n), t the unit direction of the last converged increment, so that an
-    increment of g is the root-mean-square nodal displacement along the path [m]."""
-    scale = 1.0 / np.sqrt(n_displacements)
-
-    def measure(u: np.ndarray, before: np.ndarray | None) -> Measure | None:
-        if before is None:
-            return None
-        t = np.zeros(u.shape[0])
-        t[:n_displacements] = u[:n_displacements] - before[:n_displacements]
-        norm = np.linalg.norm(t)
-        if norm == 0.0:
-            return None
-        t *= scale / norm
-        return lambda v: (float(t @ v), t)
-
-    return PathSpec(measure, increment, lambda: True, max_steps, "arc length")
+from rockfrac.solve.paths import Committed, PathSpec
 
 
 @dataclass(frozen=True)
@@ -195,6 +147,8 @@ def run_stages(
     else:
         u = np.zeros(model.n_dofs) if u0 is None else u0.copy()
     f_start = np.zeros(model.n_dofs) if f0 is None else f0
+    u_ref = np.zeros(model.n_dofs) if u0 is None else u0.copy()  # the initial state (energy released from it)
+    f_ref = f_start
     previous = np.full(model.n_dofs, np.nan)  # prescribed values at the end of the last stage (nan: free)
     count = 0 if start is None else start.count
     for index, stage in enumerate(stages):
@@ -224,16 +178,18 @@ def run_stages(
         while lam < 1.0 - 1e-12:
             if should_stop is not None and should_stop():
                 return stopped(stage)
-            measure = None
+            committed = Committed(u, u_before, lam, loads, u_ref, f_ref)
+            constraint = None
             if stage.path is not None and (forced or stage.path.active()):
-                measure = stage.path.measure(u, u_before)  # frozen at the committed state
-            if measure is not None and path_nominal is None:
-                measure = None  # the nominal increment comes from the first step
-            mode = "path" if measure is not None else "load"
-            if measure is not None:
-                g_now, _ = measure(u)
-                target = g_now + size["path"]
-                ctrl = PathControl(measure, target, 1e-9 * nominal["path"], size["load"], stage.path is not None and stage.path.rigid_ok)
+                constraint = stage.path.constraint(committed)  # frozen at the committed state
+            if constraint is not None and path_nominal is None:
+                constraint = None  # the nominal increment comes from the first step
+            mode = "path" if constraint is not None else "load"
+            if constraint is not None:
+                assert stage.path is not None
+                target = constraint.value(u, lam) + size["path"]
+                ctrl = PathControl(constraint.measure, target, 1e-9 * nominal["path"], size["load"],
+                                   stage.path.rigid_ok, constraint.lam_coeff)
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
                 if res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
@@ -244,7 +200,7 @@ def run_stages(
             if res.interrupted:
                 return stopped(stage)
             if (not res.converged and mode == "load" and stage.path is not None and not forced
-                    and (m := stage.path.measure(u, u_before)) is not None and np.any(m(u)[1])):
+                    and (m := stage.path.constraint(committed)) is not None and np.any(m.measure(u)[1])):
                 # a limit point under load control, and a path measure that can respond (a
                 # discontinuity exists): follow the path from here; otherwise cut the load step back
                 forced = True
@@ -273,8 +229,8 @@ def run_stages(
                     continue
             model.commit()
             if stage.path is not None and path_nominal is None:
-                first = stage.path.measure(res.u, u)
-                change = 0.0 if first is None else abs(first(res.u)[0] - first(u)[0])
+                first = stage.path.constraint(Committed(res.u, u, res.lam, loads, u_ref, f_ref))
+                change = 0.0 if first is None else abs(first.value(res.u, res.lam) - first.value(u, lam))
                 if change > 0.0:  # the measure's change over a nominal load step, from the first step
                     path_nominal = change * nominal["load"] / (res.lam - lam)
                     nominal["path"] = size["path"] = path_nominal

@@ -6,7 +6,8 @@ as .msh files a case reads with ``[mesh] kind = "gmsh"``.
 - :func:`plate_with_hole`: a quarter of a square plate around a borehole, symmetry edges
   ``left`` (x = 0) and ``bottom`` (y = 0), the hole ``hole``, an optional ring region ``near``;
 - :func:`notched_beam`: a beam with a central bottom notch for three-point bending, the ligament
-  above the notch as an internal curve ``ligament``, point groups at the supports and the load.
+  above the notch as an internal curve ``ligament``, point groups at the supports and the load;
+- :func:`box`: a structured hexahedral box with its six faces named (3D loads).
 
 Each takes an element size and the element type ("quad4": all quadrilaterals by Gmsh's
 recombination and subdivision, or "tri3"), and names every group the examples use.
@@ -178,3 +179,39 @@ def notched_beam(path: str | Path, length: float = 0.2, height: float = 0.05, sp
         gmsh.model.addPhysicalGroup(0, _in_box(0, xc, height, xc, height), name="load")
         _options(h, element)
         return _write(path)
+
+
+def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
+        divisions: tuple[int, int, int] = (2, 2, 2)) -> Path:
+    """A structured hexahedral box [0, lx] x [0, ly] x [0, lz] [m] (region rock), ``divisions``
+    cells along x, y, z; faces left/right (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz)."""
+    import gmsh
+
+    lx, ly, lz = size
+    with gmsh_session("rockfrac_box"):
+        gmsh.model.occ.addBox(0, 0, 0, lx, ly, lz)
+        gmsh.model.occ.synchronize()
+        for _, c in gmsh.model.getEntities(1):
+            x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(1, c)
+            axis = max(range(3), key=lambda i: (x1 - x0, y1 - y0, z1 - z0)[i])
+            gmsh.model.mesh.setTransfiniteCurve(c, divisions[axis] + 1)
+        for _, s in gmsh.model.getEntities(2):
+            gmsh.model.mesh.setTransfiniteSurface(s)
+            gmsh.model.mesh.setRecombine(2, s)
+        gmsh.model.mesh.setTransfiniteVolume(1)
+        gmsh.model.addPhysicalGroup(3, [1], name="rock")
+        e = 1e-6 * max(size)
+        for name, axis, at in (("left", 0, 0.0), ("right", 0, lx), ("front", 1, 0.0), ("back", 1, ly),
+                               ("bottom", 2, 0.0), ("top", 2, lz)):
+            lo = [-e, -e, -e]
+            hi = [lx + e, ly + e, lz + e]
+            lo[axis], hi[axis] = at - e, at + e
+            faces = [t for _, t in gmsh.model.getEntitiesInBoundingBox(*lo, *hi, dim=2)]
+            gmsh.model.addPhysicalGroup(2, faces, name=name)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        gmsh.model.mesh.generate(3)
+        gmsh.write(str(path))
+    return path

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rockfrac.elements.solid import ElasticSolid
-from rockfrac.fem.conditions import face_pressure
+from rockfrac.fem.loads import face_pressure
 from rockfrac.fem.kinematics import elastic_blocks, element_gradients
 from rockfrac.fem.reference import HEX8, QUAD4
 from rockfrac.laws.elastic import isotropic_elasticity, plane_strain_elasticity

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rockfrac.elements.solid import ElasticSolid
-from rockfrac.fem.conditions import edge_pressure
+from rockfrac.fem.loads import edge_pressure
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.mesh import Mesh, cracked_specimen
 from rockfrac.mesh.interfaces import (

@@ -17,12 +17,13 @@ from rockfrac.case.program import InitialStressSection, StageSection, StopSectio
 from rockfrac.case.schema import Case
 from rockfrac.elements.base import ElementGroup
 from rockfrac.errors import CaseError
-from rockfrac.fem.conditions import edge_pressure, face_pressure
 from rockfrac.fem.loads import (
     StressField,
     body_force,
+    edge_pressure,
     edge_stress_traction,
     edge_traction,
+    face_pressure,
     face_stress_traction,
     face_traction,
     nodal_volumes,

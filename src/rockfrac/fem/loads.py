@@ -28,6 +28,18 @@ def _scatter(f: np.ndarray, nodes_of: np.ndarray, forces: np.ndarray, dim: int) 
         np.add.at(f, dim * nodes_of + i, forces[..., i])
 
 
+def edge_pressure(nodes: np.ndarray, edges: np.ndarray, pressure: float, f: np.ndarray) -> None:
+    """Add the nodal forces of a pressure [Pa] (positive pushing inward) on 2D edges: each end
+    receives half the edge force -p n L."""
+    if edges.size == 0:
+        return
+    d = nodes[edges[:, 1]] - nodes[edges[:, 0]]
+    half = -0.5 * pressure * np.stack([d[:, 1], -d[:, 0]], axis=1)  # (k, 2) = -p n L / 2
+    for end in (0, 1):
+        np.add.at(f, 2 * edges[:, end], half[:, 0])
+        np.add.at(f, 2 * edges[:, end] + 1, half[:, 1])
+
+
 def edge_normals(nodes: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Outward unit normals (k, 2) and lengths (k,) of counter-clockwise boundary edges."""
     d = nodes[edges[:, 1], :2] - nodes[edges[:, 0], :2]
@@ -72,6 +84,17 @@ def _face_geometry(nodes: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np
     xi = np.einsum("qa,kai->kqi", dn[:, :, 0], x)
     eta = np.einsum("qa,kai->kqi", dn[:, :, 1], x)
     return shape, np.einsum("qa,kai->kqi", shape, x), np.cross(xi, eta)
+
+
+def face_pressure(nodes: np.ndarray, faces: np.ndarray, pressure: float, f: np.ndarray) -> None:
+    """Add the consistent nodal forces -p int N_a n dA of a pressure [Pa] (positive pushing inward)
+    on 3D faces (exact for planar and warped bilinear faces)."""
+    if faces.size == 0:
+        return
+    shape, _, nda = _face_geometry(nodes, faces)
+    forces = -pressure * np.einsum("qa,kqi->kai", shape, nda)  # Gauss weights are 1
+    for i in range(3):
+        np.add.at(f, 3 * faces + i, forces[:, :, i])
 
 
 def face_traction(nodes: np.ndarray, faces: np.ndarray, traction: np.ndarray, f: np.ndarray) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from rockfrac.laws.cohesive import ep_update, strengths_points
+from rockfrac.laws.cohesive import ep_update
 from rockfrac.laws.cohesive_params import (
     N_STATE,
     S_EPSN,
@@ -20,6 +20,7 @@ from rockfrac.laws.cohesive_params import (
     S_UPT,
     CohesiveLaw,
 )
+from rockfrac.laws.cohesive_surface import strengths_points
 
 MAX_HALVINGS = 20
 

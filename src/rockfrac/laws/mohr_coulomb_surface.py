@@ -22,15 +22,8 @@ from rockfrac.fem.interface import (
     multiplier_rows,
     pair_blocks_local,
 )
-from rockfrac.laws import cohesive as _law
-from rockfrac.laws.cohesive import (
-    START_GIVEN,
-    START_NONE,
-    ep_update,
-    ep_update_jump,
-    return_step,
-    workspace,
-)
+from rockfrac.laws import cohesive_surface as _law
+from rockfrac.laws.cohesive import ep_update, ep_update_jump, return_step
 from rockfrac.laws.cohesive_params import (
     MODE_PLASTIC,
     S_DGAMMA,
@@ -41,6 +34,8 @@ from rockfrac.laws.cohesive_params import (
     S_TT,
     CohesiveLaw,
 )
+from rockfrac.laws.cohesive_solve import workspace
+from rockfrac.laws.cohesive_system import START_GIVEN, START_NONE
 from rockfrac.laws.traction_law import TractionLaw, hold_constrained, keep_committed
 from rockfrac.values import Angle, Energy, Rate, Section, Strength
 

@@ -207,3 +207,25 @@ def test_resume_of_a_program_with_in_situ_stress_is_bit_for_bit(tmp_path):
     for k in full:
         if full[k].dtype.kind == "f":
             np.testing.assert_array_equal(full[k], cut[k])
+
+
+def test_api_keeps_the_fields_of_the_steps_asked_for(tmp_path):
+    import rockfrac as rf
+
+    case = rf.make_case(block(stages=[{"name": "load", "steps": 4, "displacement": SUPPORTS,
+                                       "pressure": {"top": 1e6}}]))
+    r = rf.run(case, tmp_path / "every", fields_every=1)
+    assert sorted(r.snapshots) == [1, 2, 3, 4]
+    for k in range(1, 5):  # the ramp: sigma_yy = -p k / 4 in every cell, u_y at the top likewise
+        np.testing.assert_allclose(r.cell_stress(step=k)[:, 1], -1e6 * k / 4, rtol=1e-12)
+        top = r.built.mesh.node_sets["top"]
+        np.testing.assert_allclose(r.displacement(step=k)[top, 1], r.history["u_top_y"][k - 1], rtol=1e-12)
+    np.testing.assert_array_equal(r.cell_stress(step=4), r.cell_stress())
+    r2 = rf.run(case, tmp_path / "two", fields_every=2)
+    assert sorted(r2.snapshots) == [2, 4]
+    with pytest.raises(KeyError, match=r"step 3: its fields were not kept; kept: steps 2..4 every 2"):
+        r2.displacement(step=3)
+    with pytest.raises(KeyError, match="run with fields_every"):
+        rf.run(case, tmp_path / "none").cell_stress(step=1)
+    with pytest.raises(CaseError, match="fields_every = -1: a whole number"):
+        rf.run(case, tmp_path / "bad", fields_every=-1)

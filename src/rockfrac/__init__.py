@@ -11,7 +11,7 @@ The flat API (loaded on first use, so ``import rockfrac`` stays cheap)::
     result = rf.run(case, "out/x", progress=True)
     result.history["R_top_y"], result.points, result.cell_stress()
 
-- :func:`make_case`, :func:`load`, :func:`run`, :class:`Result` (rockfrac.api);
+- :func:`make_case`, :func:`load`, :func:`run`, :class:`Result`, :class:`Snapshot` (rockfrac.api);
 - :class:`Case` and the section classes (rockfrac.case.schema), :class:`CaseError`;
 - :func:`read_mesh` (Gmsh .msh), :class:`Mesh`, the rock-test meshes :func:`disc`,
   :func:`plate_with_hole`, :func:`notched_beam` (rockfrac.mesh.rock_tests);
@@ -36,6 +36,7 @@ _EXPORTS = {
     "load": ("rockfrac.api", "load"),
     "run": ("rockfrac.api", "run"),
     "Result": ("rockfrac.api", "Result"),
+    "Snapshot": ("rockfrac.api", "Snapshot"),
     "Case": ("rockfrac.case.schema", "Case"),
     "MeshSection": ("rockfrac.case.schema", "MeshSection"),
     "BulkSection": ("rockfrac.case.schema", "BulkSection"),

@@ -12,8 +12,9 @@ Example::
         stages=[{"name": "load", "steps": 2, "displacement": {"bottom": {"y": 0.0}, "left": {"x": 0.0}},
                  "pressure": {"top": 1e6}}],
     )
-    result = rf.run(case, "out/block")
+    result = rf.run(case, "out/block", fields_every=1)
     result.history["R_bottom_y"][-1]       # 1e6 N/m: the support carries the pressure
+    result.cell_stress(step=1)             # the stresses half-way (fields kept every step)
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from rockfrac.case.build import Built
 from rockfrac.case.schema import Case, load_case, parse_case
 from rockfrac.errors import CaseError
 from rockfrac.output.csvout import read_csv
+from rockfrac.output.observers import Observer, Step
 from rockfrac.runner import RunSummary, run_case
 
 
@@ -58,14 +60,47 @@ def load(path: str | Path) -> Case:
     return load_case(path)
 
 
+@dataclass(frozen=True)
+class Snapshot:
+    """The fields of one converged step: nodal displacements (n_nodes, dim) [m] and cell-averaged
+    stresses (n_cells, 6) [Pa] (xx, yy, zz, xy, yz, xz)."""
+
+    displacement: np.ndarray
+    cell_stress: np.ndarray
+
+
+def cell_stress_of(built: Built, u: np.ndarray) -> np.ndarray:
+    """Cell-averaged stresses (n_cells, 6) [Pa] of the bulk groups at their committed state."""
+    out = np.zeros((built.mesh.cells.shape[0], 6))
+    for g in built.bulks:
+        out[g.cell_ids] = g.stresses(u).mean(axis=1)
+    return out
+
+
+class _Snapshots(Observer):
+    """Keeps the fields of every ``every``-th converged step (by step number)."""
+
+    def __init__(self, built: Built, every: int, store: dict[int, Snapshot]):
+        self.built, self.every, self.store = built, every, store
+
+    def step(self, step: Step) -> None:
+        if step.info.step % self.every == 0:
+            mesh = self.built.mesh
+            u = step.info.u
+            self.store[step.info.step] = Snapshot(u[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim).copy(),
+                                                  cell_stress_of(self.built, u))
+
+
 @dataclass
 class Result:
-    """What a run left: its folder, history and point records as arrays, the built model."""
+    """What a run left: its folder, history and point records as arrays, the built model, and the
+    fields of the steps kept (``fields_every`` of :func:`run`)."""
 
     out: Path
     summary: RunSummary
     history: dict[str, np.ndarray]
     points: dict[str, np.ndarray] | None
+    snapshots: dict[int, Snapshot] = field(default_factory=dict)  # step -> its fields
     _keep: Any = field(default=None, repr=False)  # a temporary folder, kept alive with the result
 
     @property
@@ -88,17 +123,28 @@ class Result:
         """The last converged displacement vector (and multipliers)."""
         return self.summary.result.u
 
-    def displacement(self) -> np.ndarray:
-        """Nodal displacements (n_nodes, dim) [m] at the last converged step."""
+    def displacement(self, step: int | None = None) -> np.ndarray:
+        """Nodal displacements (n_nodes, dim) [m] at a kept step (None: the last converged step)."""
+        if step is not None:
+            return self.snapshot(step).displacement
         mesh = self.built.mesh
         return self.u[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
 
-    def cell_stress(self) -> np.ndarray:
-        """Cell-averaged stresses (n_cells, 6) [Pa] (xx, yy, zz, xy, yz, xz) at the last step."""
-        out = np.zeros((self.built.mesh.cells.shape[0], 6))
-        for g in self.built.bulks:
-            out[g.cell_ids] = g.stresses(self.u).mean(axis=1)
-        return out
+    def cell_stress(self, step: int | None = None) -> np.ndarray:
+        """Cell-averaged stresses (n_cells, 6) [Pa] (xx, yy, zz, xy, yz, xz) at a kept step (None:
+        the last converged step)."""
+        if step is not None:
+            return self.snapshot(step).cell_stress
+        return cell_stress_of(self.built, self.u)
+
+    def snapshot(self, step: int) -> Snapshot:
+        """The fields of a kept step; KeyError naming the kept steps otherwise."""
+        if step not in self.snapshots:
+            kept = sorted(self.snapshots)
+            listed = (f"steps {kept[0]}..{kept[-1]} every {kept[1] - kept[0] if len(kept) > 1 else 1}"
+                      if kept else "none (run with fields_every = n to keep every n-th step)")
+            raise KeyError(f"step {step}: its fields were not kept; kept: {listed}")
+        return self.snapshots[step]
 
     def to_pandas(self):
         """The history as a pandas DataFrame (needs pandas)."""
@@ -108,10 +154,13 @@ class Result:
 
 
 def run(case_: Case | str | Path, out: str | Path | None = None, *, overwrite: bool = False, resume: bool = False,
-        progress: bool | Callable[[dict], None] = False) -> Result:
+        progress: bool | Callable[[dict], None] = False, fields_every: int = 0) -> Result:
     """Run a case (an object from :func:`make_case` or a case file) into ``out`` (None: a temporary folder
     that lives as long as the result) and return its results. progress: True for a progress line
-    per step on the terminal, or a callable receiving each history row."""
+    per step on the terminal, or a callable receiving each history row. fields_every: keep the
+    displacement and stress fields of every n-th step in memory (0: only the last step's)."""
+    if isinstance(fields_every, bool) or not isinstance(fields_every, int) or fields_every < 0:
+        raise CaseError(f"run: fields_every = {fields_every!r}: a whole number of steps >= 0 (0: none kept)")
     keep = None
     if out is None:
         keep = tempfile.TemporaryDirectory(prefix="rockfrac-")
@@ -129,10 +178,15 @@ def run(case_: Case | str | Path, out: str | Path | None = None, *, overwrite: b
                           f"it={row['newton_iterations']}", highlight=False, markup=False)
     if isinstance(case_, (str, Path)):
         case_ = load_case(case_)
-    summary = run_case(case_, out, progress=callback, overwrite=overwrite, resume=resume)
+    snapshots: dict[int, Snapshot] = {}
+
+    def watch(built: Built) -> list[Observer]:
+        return [_Snapshots(built, fields_every, snapshots)] if fields_every else []
+
+    summary = run_case(case_, out, progress=callback, overwrite=overwrite, resume=resume, watch=watch)
     folder = Path(out)
     points = read_csv(folder / "points.csv") if (folder / "points.csv").exists() else None
-    return Result(folder, summary, read_csv(folder / "history.csv"), points, keep)
+    return Result(folder, summary, read_csv(folder / "history.csv"), points, snapshots, keep)
 
 
-__all__ = ["CaseError", "Result", "load", "make_case", "run"]
+__all__ = ["CaseError", "Result", "Snapshot", "load", "make_case", "run"]

@@ -173,7 +173,8 @@ def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
 
 def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict], None] | None = None,
              path_label: str | None = None, resume: bool = False, overwrite: bool = False,
-             warn: Callable[[str], None] | None = None, on_start: Callable[[], None] | None = None) -> RunSummary:
+             warn: Callable[[str], None] | None = None, on_start: Callable[[], None] | None = None,
+             watch: Callable[[Built], list[Observer]] | None = None) -> RunSummary:
     """Run a validated case (or a case file) and write its outputs into ``out``.
 
     resume: continue from out/checkpoint.npz (written every [output] checkpoint_every steps) with the
@@ -183,6 +184,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     ``overwrite`` (which deletes them first). on_start(): called once the inputs are checked and the
     folder is ready, before the first step; warn: then called with each warning.
     SIGINT/SIGTERM end the run at the next step boundary (the summary's ``stop_signal`` says which).
+    watch(built): more observers of the steps (e.g. the API's field snapshots), made once the model is built.
     """
     label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
     if not isinstance(case, Case):
@@ -220,6 +222,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         observers.append(log)
         if progress is not None:
             observers.append(Progress(progress))
+        if watch is not None:
+            observers.extend(watch(built))
         axial_peak = {"F_axial": float(counters.get("peak", -np.inf))}
 
         def counts() -> dict[str, float]:

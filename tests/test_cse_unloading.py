@@ -15,9 +15,9 @@ def test_rp_unloads_to_the_constrained_state_and_reloads_rigidly(run):
     unload = h["stage"] == "axial 2"
     reload_ = h["stage"] == "axial 3"
     assert np.all(h["n_plastic"][unload] == 0)
-    # rigid crack: unloading follows the uncracked elastic slope exactly
+    # rigid crack: unloading follows the uncracked elastic slope (to Newton's tolerance, 1e-8)
     u, f = h["u_axial"][unload], h["F_axial"][unload]
-    np.testing.assert_allclose(np.diff(f) / np.diff(u), BULK_SLOPE, rtol=1e-9)
+    np.testing.assert_allclose(np.diff(f) / np.diff(u), BULK_SLOPE, rtol=2e-8)
     # the jump is frozen while constrained
     last_plastic = int(h["step"][~unload & ~reload_][-1])
     frozen = pts["step"] == last_plastic

@@ -110,7 +110,8 @@ def test_resume_after_sigkill_is_bit_for_bit(case_and_reference, tmp_path):
             else:
                 assert list(a[k]) == list(b[k])
     log = (out / "run.log").read_text()
-    assert step_lines(log) == list(range(1, STEPS + 2))  # one confinement step, then axial: no gap, none twice
+    # one confinement step, the axial steps and the step that ends at the activation: no gap, none twice
+    assert step_lines(log) == list(range(1, STEPS + 3))
     assert log.count("resumed from the checkpoint at step") == 1
 
 

@@ -24,6 +24,12 @@ MATERIAL = (EXAMPLES / "laws" / "dp_gosford.toml").read_text()
 PATH_CSV = (EXAMPLES / "laws" / "shear_path.csv").read_text()
 
 
+def solver(*lines: str) -> str:
+    """GOOD with more keys in its [solver] table."""
+    assert "\n[solver]\n" in GOOD
+    return GOOD.replace("\n[solver]\n", "\n[solver]\n" + "".join(line + "\n" for line in lines))
+
+
 def replace(old: str, new: str, text: str = GOOD) -> str:
     assert old in text, old
     return text.replace(old, new, 1)
@@ -83,13 +89,13 @@ CASES = [
     ("mesh-width-huge", replace("width = 0.04", "width = 1e9"), "[mesh] width", "less than or equal"),
     ("crack-angle", replace("crack_angle = 0.9989762274499867", "crack_angle = 2.0"), "[mesh] crack_angle",
      "less than"),
-    ("tol-zero", GOOD + "\n[solver]\ntol_residual = 0.0\n", "[solver] tol_residual", "greater than or equal"),
-    ("tol-loose", GOOD + "\n[solver]\ntol_residual = 1.0\n", "[solver] tol_residual", "less than or equal"),
-    ("min-step-zero", GOOD + "\n[solver]\nmin_step = 0.0\n", "[solver] min_step", "greater than or equal"),
-    ("cutback-one", GOOD + "\n[solver]\ncutback = 1.0\n", "[solver] cutback", "less than or equal"),
-    ("iterations-zero", GOOD + "\n[solver]\nmax_iterations = 0\n", "[solver] max_iterations",
+    ("tol-zero", solver("tol_residual = 0.0"), "[solver] tol_residual", "greater than or equal"),
+    ("tol-loose", solver("tol_residual = 1.0"), "[solver] tol_residual", "less than or equal"),
+    ("min-step-zero", solver("min_step = 0.0"), "[solver] min_step", "greater than or equal"),
+    ("cutback-one", solver("cutback = 1.0"), "[solver] cutback", "less than or equal"),
+    ("iterations-zero", solver("max_iterations = 0"), "[solver] max_iterations",
      "greater than or equal"),
-    ("linear-unknown", GOOD + '\n[solver]\nlinear = "cholmod"\n', "[solver] linear", "'superlu'"),
+    ("linear-unknown", solver('linear = "cholmod"'), "[solver] linear", "'superlu'"),
     ("vtk-string", GOOD + '\n[output]\nvtk = "yes"\n', "[output] vtk", "valid boolean"),
     ("points-int", GOOD + "\n[output]\npoints = 1\n", "[output] points", "valid boolean"),
     ("checkpoint-negative", GOOD + "\n[output]\ncheckpoint_every = -1\n", "[output] checkpoint_every",
@@ -432,7 +438,8 @@ def test_csv_quotes_fields_and_tells_nan_from_empty(tmp_path):
 
 def test_a_load_the_solve_cannot_follow_is_named(tmp_path, capsys):
     """A step that cannot converge down to min_step stops the run with the load key that drives it."""
-    case = small_case(tmp_path, steps=1, extra="\n[solver]\nmax_iterations = 1\nmin_step = 0.25\n")
+    case = small_case(tmp_path, steps=1)
+    case.write_text(case.read_text().replace("\n[solver]\n", "\n[solver]\nmax_iterations = 1\nmin_step = 0.25\n"))
     # one Newton iteration cannot meet the energy norm: the confinement stage fails
     out = tmp_path / "out"
     code, err = run_cli(capsys, "run", case, "--out", out, "--quiet")

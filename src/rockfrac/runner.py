@@ -257,7 +257,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 obs.step(step)
 
         sol = case.solver
-        stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step)
+        stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step,
+                                   locate_activation=sol.locate_activation)
         t0 = time.perf_counter()
         with stop_on_signals() as request:
             newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,

@@ -36,6 +36,9 @@ class SolverSection(_Section):
     tol_energy: float = Field(1e-10, ge=1e-20, le=1e-2, description="relative energy norm to converge")
     cutback: float = Field(0.5, ge=0.01, le=0.9, description="factor on the step after a failed one")
     min_step: float = Field(1e-4, ge=1e-12, le=1, description="smallest increment, fraction of the nominal")
+    locate_activation: bool = Field(True, description="end a load-controlled step where a cohesive surface "
+                                    "first yields (its peak becomes a step); false steps over it, as the paper's "
+                                    "study does")
 
 
 class OutputSection(_Section):

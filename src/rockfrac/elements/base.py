@@ -127,6 +127,16 @@ class ElementGroup(ABC):
         """True if the committed state has a crack that opens or slides (path control may take over)."""
         return False
 
+    def activation_pending(self) -> bool:
+        """True while the group is a surface none of whose points has yielded yet (its first
+        activation, the peak of a crack, is then located by the stepping)."""
+        return False
+
+    def activation(self, u: np.ndarray, du: np.ndarray) -> float | None:
+        """The fraction s in (0, 1] of the increment du from the committed u at which a point of a
+        pending surface first reaches its yield surface along the elastic response (None: none)."""
+        return None
+
     def path_weight(self) -> int:
         """How many points the path measure averages over (to combine several groups)."""
         return 0

@@ -98,6 +98,39 @@ class _CohesiveGroup(ElementGroup):
     def path_weight(self) -> int:
         return self.points.n
 
+    BISECTIONS = 60  # halvings of the step fraction when locating an activation (2^-60: round-off)
+
+    def activation_pending(self) -> bool:
+        return self.dissipated == 0.0 and not self.any_plastic()
+
+    def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """Local tractions' increment (n_pts, 2) [Pa] along du from the committed state while no
+        point yields: the committed tangent on the jump increment (EP)."""
+        dj = self.points.local(self.points.jumps(u + du) - self.points.jumps(u))
+        return np.einsum("pij,pj->pi", self.tangent, dj)
+
+    def activation(self, u: np.ndarray, du: np.ndarray) -> float | None:
+        if not self.activation_pending():
+            return None
+        t0 = self.state[:, S_TT:S_TN + 1].copy()
+        dt = self.traction_increment(u, du)
+        trial = self.state.copy()
+        f0 = self.law.yield_values(trial)
+        trial[:, S_TT:S_TN + 1] = t0 + dt
+        f1 = self.law.yield_values(trial)
+        live = np.flatnonzero((f0 < -1e-9 * self.law.scale) & (f1 > 0.0))
+        if not live.size:
+            return None
+        at, t0, dt = trial[live], t0[live], dt[live]
+        lo, hi = np.zeros(live.size), np.ones(live.size)  # F(lo) <= 0 < F(hi)
+        for _ in range(self.BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            at[:, S_TT:S_TN + 1] = t0 + mid[:, None] * dt
+            out = self.law.yield_values(at) > 0.0
+            hi = np.where(out, mid, hi)
+            lo = np.where(out, lo, mid)
+        return float(lo.min())
+
     def point_records(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """:meth:`records` with the plastic jump's norm, the state named and the set."""
         rec = self.records(u)
@@ -239,6 +272,11 @@ class CohesiveRP(_CohesiveGroup):
     def multipliers(self, u: np.ndarray) -> np.ndarray:
         """Global-frame multipliers (n_pts, 2) [Pa]."""
         return u[self.offset : self.offset + self.n_extra].reshape(-1, 2)
+
+    def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """Local tractions' increment (n_pts, 2) [Pa] along du while every point is constrained: the
+        multipliers' (the jumps stay zero)."""
+        return self.points.local(self.multipliers(u + du) - self.multipliers(u))
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points

@@ -113,8 +113,13 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
         comp = 1.0 / aug
         # trial lambda + r h: elastic, or the return; the work rule's flow starts at the committed
-        # traction of a committed plastic point
-        start = START_GIVEN if s_old[i, S_MODE] == MODE_PLASTIC else START_NONE
+        # traction of a committed plastic point, or of a constrained one already on its yield surface
+        # (a step that starts at the activation); from inside, the rigid traction's path to the
+        # surface is not defined and the onset step is backward Euler
+        on_surface = (s_old[i, S_MODE] == MODE_PLASTIC
+                      or _law.yield_function(s_old[i, S_TT], s_old[i, S_TN], s_old[i, S_EPSN], s_old[i, S_EPSS], p)
+                      >= -_law.elastic_tolerance(p))
+        start = START_GIVEN if on_surface else START_NONE
         status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
                                 s_old[i], p, s_new[i], d_new[i], wk)
     switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rockfrac.model import Model
+from rockfrac.solve.events import activation_fraction
 from rockfrac.solve.linear import LinearSolver
 from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step
 from rockfrac.solve.paths import Committed, PathSpec
@@ -62,6 +63,7 @@ class SteppingOptions:
     grow: float = 1.5  # increment growth after an easy step, up to the nominal one
     easy_iterations: int = 6
     event_tol: float = 1e-4  # a step may end this far past an event (indicator in [-tol, 0])
+    locate_activation: bool = False  # end a load step where a surface first yields (its peak)
 
 
 @dataclass
@@ -195,7 +197,14 @@ def run_stages(
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
             else:
                 size["load"] = min(size["load"], 1.0 - lam)
-                res = newton_step(model, u, lam, lam + size["load"], loads, solver, newton)
+                step = size["load"]
+                if stepping.locate_activation:
+                    s = activation_fraction(model, u, lam, step, loads, solver)
+                    if s is not None and s < 1.0 and s * step >= stepping.min_step * nominal["load"]:
+                        step *= s
+                        log(f"  {stage.name}: a surface first yields {s:.6f} of the way through the step; "
+                            f"ending it there (load factor {lam + step:.9f})")
+                res = newton_step(model, u, lam, lam + step, loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
             if res.interrupted:
                 return stopped(stage)

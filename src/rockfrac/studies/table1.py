@@ -46,6 +46,7 @@ def cse_case(form: str, k: float | None = None, alpha: float = 2e3, *, axial_dis
         "loading": {"confinement": CONFINEMENT, "confinement_steps": 2,
                     "axial_displacement": axial_displacement, "axial_steps": axial_steps,
                     "control": control},
+        "solver": {"locate_activation": False},  # the paper's stepping: activation inside a step
     }
 
 

@@ -268,6 +268,8 @@ class Bilinear(TractionLaw):
     state_names = ("T_t", "T_n", "jump_p_t", "jump_p_n", "kappa", "dgamma", "mode")
     mode_slot = S_MODE
     record_names = ("kappa", "strength")
+    ep_kernel = ep_points
+    rp_kernel = rp_points
 
     @property
     def delta_c(self) -> float:
@@ -284,14 +286,6 @@ class Bilinear(TractionLaw):
             p[P_CT], p[P_CN] = 1.0 / self.kt, 1.0 / self.kn
         p[P_SIGMA], p[P_DELTA], p[P_BETA] = self.params.sigma_c, self.delta_c, self.params.beta
         return p
-
-    def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
-        ep_points(frame, weight, djump, s_old, d_old, self.p, s_new, d_new, fe, ke, status)
-
-    def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
-                  ke, status, switched) -> None:
-        rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, self.p, s_new, d_new, fe,
-                  ke, status, switched)
 
     def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:
         if self.rigid:

@@ -175,6 +175,8 @@ class MohrCoulombSurface(TractionLaw):
     state_names = ("T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p", "dgamma", "mode")
     mode_slot = S_MODE
     record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
+    ep_kernel = ep_points
+    rp_kernel = rp_points
 
     def __init__(self, params: MohrCoulombParameters, kn: float | None = None, kt: float | None = None):
         self.law = CohesiveLaw(**{k: getattr(params, k) for k in CohesiveLaw.__dataclass_fields__
@@ -187,14 +189,6 @@ class MohrCoulombSurface(TractionLaw):
 
     def vector(self) -> np.ndarray:
         return self.law.as_array()
-
-    def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
-        ep_points(frame, weight, djump, s_old, d_old, self.p, s_new, d_new, fe, ke, status)
-
-    def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
-                  ke, status, switched) -> None:
-        rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, self.p, s_new, d_new, fe,
-                  ke, status, switched)
 
     def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:
         from rockfrac.laws.drive import drive_path

@@ -10,7 +10,9 @@ State: every law's state vector (n_state,) starts with the common slots T_t, T_n
 jump_p_t, jump_p_n (plastic jump) and then holds its own (``state_names``); ``mode_slot`` says
 where the law keeps 0 (elastic/constrained) or 1 (plastic).
 
-Kernels (compiled, with the signatures the groups call):
+Kernels (compiled; the subclass names them as its ``ep_kernel`` and ``rp_kernel``, which the
+groups call through :meth:`TractionLaw.ep_points` / :meth:`TractionLaw.rp_points` with the law's
+parameter vector p):
 
 - ``ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status)``: the penalty
   form (Sect. 6.1) at every point, blocks (n, 4), (n, 4, 4);
@@ -67,6 +69,8 @@ class TractionLaw(ABC):
     state_names: ClassVar[tuple[str, ...]]  # the whole state vector, COMMON_STATE first
     mode_slot: ClassVar[int]
     record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
+    ep_kernel: ClassVar[Any]  # the compiled ep_points(..., p, ...) of the module docstring
+    rp_kernel: ClassVar[Any]  # the compiled rp_points(..., p, ...)
 
     def __init__(self, params: Any, kn: float | None = None, kt: float | None = None):
         self.params = params
@@ -92,14 +96,15 @@ class TractionLaw(ABC):
     def vector(self) -> np.ndarray:
         """The flat parameter vector the kernels read."""
 
-    @abstractmethod
     def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
-        """The EP form at every point (see the module docstring)."""
+        """The EP form at every point (see the module docstring), with this law's parameters."""
+        type(self).ep_kernel(frame, weight, djump, s_old, d_old, self.p, s_new, d_new, fe, ke, status)
 
-    @abstractmethod
     def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
                   ke, status, switched) -> None:
-        """The RP form at every point (see the module docstring)."""
+        """The RP form at every point (see the module docstring), with this law's parameters."""
+        type(self).rp_kernel(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, self.p, s_new,
+                             d_new, fe, ke, status, switched)
 
     @abstractmethod
     def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:

@@ -131,7 +131,7 @@ def test_drucker_prager_cells_fast_equal_reference_and_numpy():
 def test_serial_and_two_threads_agree(monkeypatch):
     if nb.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one thread only")
-    monkeypatch.setattr(threads, "SOLID_CELLS", 0)  # 256 cells: keep the two threads asked for below
+    monkeypatch.setattr(threads, "FORCE", "parallel")  # 256 cells: the prange version on the threads set below
     solid, u = solid_state(16)
     saved = nb.get_num_threads()
     try:

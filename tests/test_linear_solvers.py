@@ -221,3 +221,64 @@ def test_pardiso_finds_mkl_in_the_environment_and_keeps_a_users_path(monkeypatch
     monkeypatch.setenv("PYPARDISO_MKL_RT", mine)
     linear._find_mkl_runtime()
     assert linear.os.environ["PYPARDISO_MKL_RT"] == mine
+
+
+needs_pardiso = pytest.mark.skipif("pardiso" not in linear.available(), reason="pypardiso not installed")
+
+
+def elastic_tangent(n: int = 40) -> sp.csr_matrix:
+    """The constrained elastic tangent of an n x n block (symmetric up to assembly round-off)."""
+    return tangents({"mesh": {"kind": "specimen", "crack": False, "nx": n, "ny": n}, "bulk": {"E": 1.5e7, "nu": 0.3},
+                     "loading": {"confinement": 2e4, "confinement_steps": 1, "axial_displacement": 1e-3,
+                                 "axial_steps": 2}}, 1)[0]
+
+
+@needs_pardiso
+def test_pardiso_symmetric_mode_only_for_symmetric_matrices(systems):
+    a = elastic_tangent()  # 3362 rows
+    b = np.random.default_rng(2).standard_normal(a.shape[0])
+    ref = linear.SuperLU().solve(a, b)
+    p = linear.Pardiso()
+    p.symmetric_from = 100
+    x = p.factorize(a).solve(b)
+    assert p.mtype == -2 and p.analyses == 1
+    assert np.abs(x - ref).max() <= 1e-10 * np.abs(ref).max()
+    assert np.abs(a @ x - b).max() <= 1e-10 * np.abs(b).max()
+    # the unsymmetric answer to round-off
+    q = linear.Pardiso()
+    q.symmetric = "unsymmetric"
+    y = q.factorize(a).solve(b)
+    assert q.mtype == 11 and np.abs(x - y).max() <= 1e-10 * np.abs(y).max()
+    # a nonassociative Drucker-Prager tangent and the RP saddle points keep the unsymmetric type
+    for key in ("dp plastic", "rp plastic", "rp rigid"):
+        t = systems[key]
+        assert p.matrix_type(t) == 11, key
+        bt = np.ones(t.shape[0])
+        xt = p.factorize(t).solve(bt)
+        assert p.mtype == 11 and np.abs(t @ xt - bt).max() <= 1e-8 * np.abs(bt).max(), key
+    # a change of type analyses afresh; back to the symmetric one on the same pattern
+    before = p.analyses
+    p.factorize(a).solve(b)
+    assert p.mtype == -2 and p.analyses == before + 1
+
+
+@needs_pardiso
+def test_pardiso_symmetry_check_tolerance_and_small_systems():
+    a = elastic_tangent(12)
+    p = linear.Pardiso()
+    assert a.shape[0] < p.symmetric_from and p.matrix_type(a) == 11  # small: never checked
+    p.symmetric_from = 10
+    assert p.matrix_type(a) == -2
+    skew = a.copy().tolil()
+    i, j = 40, 41
+    assert skew[i, j] != 0
+    skew[i, j] = skew[i, j] + 1e-11 * abs(a).max()  # one entry off its mirror by 1e-11 max |A|
+    assert p.matrix_type(skew.tocsr()) == 11
+    unstructured = a.copy().tolil()
+    unstructured[3, a.shape[0] - 1] = 1.0  # an entry without its mirror
+    assert p.matrix_type(unstructured.tocsr()) == 11
+    p.symmetric = "unsymmetric"
+    assert p.matrix_type(a) == 11
+    p.symmetric = "sometimes"
+    with pytest.raises(ValueError, match="auto"):
+        p.matrix_type(a)

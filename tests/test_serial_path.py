@@ -1,7 +1,7 @@
 """The serial path for small systems (benchmarks/README.md, "Serial path for small systems"):
 PARDISO on one MKL thread below ``Pardiso.serial_below`` rows (thread-local, restored after each
 call, MKL's default where the symbol is missing), Numba kernels on one thread below their item
-thresholds (``rockfrac.threads``), Newton's norms without BLAS; the same results either way."""
+thresholds (``rockfrac.threads``, tested in test_threads.py), Newton's norms without BLAS; the same results either way."""
 
 import math
 import subprocess
@@ -131,26 +131,6 @@ def test_without_the_symbol_pardiso_keeps_mkl_default(monkeypatch):
     assert np.abs(a @ x - 1.0).max() < 1e-13
 
 
-@nb.njit(parallel=True)
-def _threads_inside(out):
-    for i in nb.prange(out.shape[0]):
-        out[i] = nb.get_num_threads()
-
-
-def test_numba_kernels_run_one_thread_below_their_threshold():
-    if nb.get_num_threads() < 2:
-        pytest.skip("one Numba thread only")
-    default = nb.get_num_threads()
-    out = np.zeros(4, dtype=np.int64)
-    threads.serial_below(4, 5, _threads_inside, out)
-    assert set(out) == {1} and nb.get_num_threads() == default
-    threads.serial_below(4, 4, _threads_inside, out)
-    assert set(out) == {default}
-    with pytest.raises(nb.core.errors.TypingError):  # restored after a failing call too
-        threads.serial_below(4, 5, _threads_inside, "not an array")
-    assert nb.get_num_threads() == default
-
-
 @pytest.mark.parametrize("n", [1000, 10_000, 100_000, 1_000_000])
 def test_newton_norms_equal_numpy(n):
     x = np.random.default_rng(n).standard_normal(n)
@@ -166,8 +146,7 @@ def run(case: dict, serial: bool, monkeypatch) -> tuple[np.ndarray, np.ndarray]:
     built = build(parse_case(case, "t.toml"))
     solver = linear.make_solver("auto")
     solver.serial_below = 10**9 if serial else 0  # read by PARDISO only
-    monkeypatch.setattr(threads, "COHESIVE_POINTS", 10**9 if serial else 0)
-    monkeypatch.setattr(threads, "SOLID_CELLS", 10**9 if serial else 0)
+    monkeypatch.setattr(threads, "FORCE", "serial" if serial else "parallel")
     rows = []
     run_stages(built.model, built.stages, solver, NewtonOptions(), SteppingOptions(),
                lambda info: rows.append((info.load_factor, history_row(built, info, None)["F_axial"],
@@ -196,3 +175,32 @@ def test_serial_and_threaded_paths_give_the_same_run(kind, monkeypatch):
     assert serial[:, 2].max() >= 4  # plastic steps: the return maps ran
     assert np.abs(serial[:, 1] - threaded[:, 1]).max() <= 1e-10 * np.abs(serial[:, 1]).max()
     assert np.abs(u_serial - u_threaded).max() <= 1e-10 * np.abs(u_serial).max()
+
+
+@needs_pardiso
+def test_results_do_not_depend_on_whether_numba_threads_ran_first():
+    """MKL picks its threading layer when it loads, GNU's if Numba's OpenMP pool is already in the
+    process: the two give different last bits. rockfrac fixes the layer (linear._choose_mkl_threading),
+    so a fresh run equals a run after a parallel kernel, bit for bit."""
+    code = """if True:
+        import hashlib, sys
+        import numpy as np
+        if sys.argv[1] == "threads first":
+            from rockfrac.fem import kinematics
+            kinematics.strains.parallel(np.zeros((2, 1, 4, 2)), np.zeros((2, 8)))
+        from rockfrac.case.build import build
+        from rockfrac.case.schema import parse_case
+        from rockfrac.solve import linear
+        from rockfrac.solve.newton import NewtonOptions
+        from rockfrac.solve.stepping import SteppingOptions, run_stages
+        from rockfrac.studies import table1
+        built = build(parse_case(table1.cse_case("ep", 1e8, axial_steps=40, control="path"), "t.toml"))
+        us = []
+        run_stages(built.model, built.stages, linear.make_solver("pardiso"), NewtonOptions(), SteppingOptions(),
+                   lambda info: us.append(info.u.copy()))
+        maps = open("/proc/self/maps").read()
+        print(len(us), hashlib.sha1(np.concatenate(us).tobytes()).hexdigest(), "mkl_gnu_thread" in maps)
+    """
+    outs = [subprocess.run([sys.executable, "-c", code, mode], capture_output=True, text=True, check=True,
+                           timeout=300).stdout.split() for mode in ("fresh", "threads first")]
+    assert int(outs[0][0]) > 20 and outs[0] == outs[1]

@@ -75,7 +75,9 @@ class Model:
         """Prescribe ``dofs`` (and the extra dofs they make redundant) from now on; the rest is free."""
         redundant = [g.redundant_extras(dofs) for g in self.groups]
         self.dirichlet = np.unique(np.concatenate([np.asarray(dofs, dtype=np.int64), *redundant])).astype(np.int64)
-        self.free = np.setdiff1d(np.arange(self.n_dofs), self.dirichlet)
+        free = np.ones(self.n_dofs, dtype=np.bool_)
+        free[self.dirichlet] = False
+        self.free = np.flatnonzero(free)
         self._bc_hit, self._bc_diag = self.pattern.positions(self.dirichlet)
 
     def initial_unknowns(self) -> np.ndarray:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac import threads
 from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
@@ -201,8 +200,8 @@ class CohesiveEP(_CohesiveGroup):
         n = pts.n
         fe = np.empty((n, 4))
         ke = np.empty((n, 4, 4))
-        threads.serial_below(n, threads.COHESIVE_POINTS, self.law.ep_points, pts.frame, pts.weight, djump,
-                             self.state, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
+        self.law.ep_points(pts.frame, pts.weight, djump,
+                           self.state, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)
@@ -286,9 +285,9 @@ class CohesiveRP(_CohesiveGroup):
         ke = np.empty((n, 6, 6))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, self.mode].copy()
-        threads.serial_below(n, threads.COHESIVE_POINTS, self.law.rp_points, pts.frame, pts.weight, djump,
-                             self.multipliers(u), self.aug, self.eps, self._pinned, self.state, self.tangent,
-                             mode_prev, self.trial, self.trial_tangent, fe, ke, self.status, switched)
+        self.law.rp_points(pts.frame, pts.weight, djump,
+                           self.multipliers(u), self.aug, self.eps, self._pinned, self.state, self.tangent,
+                           mode_prev, self.trial, self.trial_tangent, fe, ke, self.status, switched)
         # active-set pinning: a point chattering between constrained and plastic (on its yield
         # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
         # only if its traction is inside the surface, else it is released (once per step)

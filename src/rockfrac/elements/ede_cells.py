@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac import threads
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.base import Evaluation, Measure
 from rockfrac.elements.ede_paths import CrackPaths, Onset
@@ -155,10 +154,10 @@ class EmbeddedCells(DruckerPragerSolid):
         mode_prev = self.e_trial[:, K.E_MODE].copy()
         fe, ke = self.element_buffers()
         slide &= ~self._stuck
-        threads.serial_below(self.grads.shape[0], threads.SOLID_CELLS, K.ede_blocks, self.grads, self.wdet, d,
-                             self.state, self.p, self.ce, self.e_state, self.gradf, self.surface_params, self._dz,
-                             slide, self._stuck, self.trial, self.trial_sigma, self.e_trial, fe, ke, self.status,
-                             self._r_prev, self._k_prev, self._h_prev)
+        K.ede_blocks(self.grads, self.wdet, d,
+                     self.state, self.p, self.ce, self.e_state, self.gradf, self.surface_params, self._dz,
+                     slide, self._stuck, self.trial, self.trial_sigma, self.e_trial, fe, ke, self.status,
+                     self._r_prev, self._k_prev, self._h_prev)
         self._d_prev[:] = d
         cp = np.maximum(self.e_state[:, K.E_CP], 1.0)
         # active-set pinning: a cell chattering between sliding and sticking is held rigid for the

@@ -45,6 +45,7 @@ from rockfrac.laws.drucker_prager import elastic_matrix as dp_elastic_matrix
 from rockfrac.laws.drucker_prager import moduli as dp_moduli
 from rockfrac.laws.drucker_prager_params import S_MODE
 from rockfrac.laws.mohr_coulomb_softening import gamma_of, strengths
+from rockfrac.threads import parallel_kernel
 
 E_LOC = 0  # 1 once localized
 E_N = 1  # normal n, slots 1..3
@@ -68,7 +69,7 @@ ST_NOT_UNIQUE = -2  # dr/d dzeta = 0: the jump does not enter the local equation
 ST_DP_FAIL = -3
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _sym_jump(v, g, e6):
     """Voigt strain (engineering shear) of sym(v x g)."""
     e6[0] = v[0] * g[0]
@@ -79,7 +80,7 @@ def _sym_jump(v, g, e6):
     e6[5] = v[0] * g[2] + v[2] * g[0]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _traction_weights(a, b, w6):
     """w6 such that w6 . sigma6 = a . sigma . b (stress-like Voigt)."""
     w6[0] = a[0] * b[0]
@@ -90,7 +91,7 @@ def _traction_weights(a, b, w6):
     w6[5] = a[0] * b[2] + a[2] * b[0]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _dot6(a, b):
     s = 0.0
     for i in range(6):
@@ -243,7 +244,7 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, stick, 
     return status, r, kz, dz
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=1.2e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, stick, dp_new, sigma, e_new, fe,
                ke, status, r_out, k_out, h_out):
     """Drucker-Prager cells, and embedded-discontinuity cells where localized (module doc).

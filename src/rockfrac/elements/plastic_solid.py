@@ -5,10 +5,9 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from rockfrac import threads
 from rockfrac.elements.base import Evaluation
 from rockfrac.elements.solid import SolidGroup
-from rockfrac.fem.kinematics import (  # noqa: F401 (point_strain, plane_point_strain: kept importable here)
+from rockfrac.fem.kinematics import (
     add_btcb,
     add_bts,
     b_matrix,
@@ -22,20 +21,21 @@ from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws import drucker_prager as dp
 from rockfrac.laws.drucker_prager_params import N_STATE, S_EPS_P, S_GAMMA, S_MODE, DruckerPrager
 from rockfrac.laws.elastic import isotropic_compliance
+from rockfrac.threads import parallel_kernel
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def integrate_point(b, w, sig6, c6, idx, fe, ke, cb):
     """fe += w B^T sigma, ke += w B^T C B on the element's Voigt components idx; cb is scratch (nv, nd)."""
     add_bts(b, w, sig6, idx, fe)
     add_btcb(b, w, c6, idx, cb, ke)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def plane_integrate_point(g, w, sig6, c6, fe, ke, cb):
     """:func:`integrate_point` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
     plane_add_bts(g, w, sig6, fe)
-    plane_add_btcb(g, w, c6, 3, cb, ke)
+    plane_add_btcb(g, w, c6, np.int64(3), cb, ke)
 
 
 @nb.njit(cache=True)
@@ -99,7 +99,7 @@ def n_chunks(n):
     return max(1, min(n, 256))
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=1.05e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def dp_blocks(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke, status):
     """Drucker-Prager solids: :func:`dp_element` over all cells (n_el leading axis on every array);
     status (n_el,) < 0 where a return failed."""
@@ -180,9 +180,9 @@ class DruckerPragerSolid(SolidGroup):
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         fe, ke = self.element_buffers()
-        threads.serial_below(self.grads.shape[0], threads.SOLID_CELLS, dp_blocks, self.grads, self.wdet,
-                             np.ascontiguousarray(u[self.dofs]), self.state, self.p, self.trial, self.trial_sigma,
-                             fe, ke, self.status)
+        dp_blocks(self.grads, self.wdet,
+                  np.ascontiguousarray(u[self.dofs]), self.state, self.p, self.trial, self.trial_sigma,
+                  fe, ke, self.status)
         bad = np.flatnonzero(self.status < 0)
         msg = (f"Drucker-Prager return failed in cells {bad[:5].tolist()} (no admissible return)"
                if bad.size else "")

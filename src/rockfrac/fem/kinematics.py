@@ -12,6 +12,7 @@ import numba as nb
 import numpy as np
 
 from rockfrac.fem.reference import ReferenceElement
+from rockfrac.threads import parallel_kernel
 
 VOIGT_2D = np.array([0, 1, 3])  # positions of (xx, yy, xy) in the 6-vector
 VOIGT_3D = np.arange(6)
@@ -22,7 +23,7 @@ def voigt_index(dim: int) -> np.ndarray:
     return VOIGT_2D if dim == 2 else VOIGT_3D
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.18e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def gradients(x: np.ndarray, dn_ref: np.ndarray, w_ref: np.ndarray):
     """Physical shape gradients (n_el, n_qp, n_nodes, dim) and det J * w (n_el, n_qp).
 
@@ -77,7 +78,7 @@ def element_gradients(x: np.ndarray, ref: ReferenceElement) -> tuple[np.ndarray,
     return gradients(np.ascontiguousarray(x, dtype=np.float64), ref.shape_gradients(ref.points), ref.weights)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
     """Fill B (n_voigt, n_nodes * dim) from gradients g (n_nodes, dim): eps_reduced = B u_e.
 
@@ -104,7 +105,7 @@ def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
             b[5, c + 2] = g[a, 0]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def add_btcb(b, w, c, idx, cb, ke):
     """ke += w B^T C B at one point: B (nv, nd), C read at (idx[k], idx[l]) (the element's Voigt
     components of a 6 x 6 modulus, or idx = 0..nv-1 of a reduced one); cb (nv, nd) is scratch.
@@ -124,7 +125,7 @@ def add_btcb(b, w, c, idx, cb, ke):
             ke[i, j] += s
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def add_bts(b, w, sig6, idx, fe):
     """fe += w B^T sigma at one point (sigma a Voigt 6-vector, read at idx)."""
     nv, nd = b.shape
@@ -135,7 +136,7 @@ def add_bts(b, w, sig6, idx, fe):
         fe[i] += w * s
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def plane_add_btcb(g, w, c, shear, cb, ke):
     """:func:`add_btcb` of a plane cell from its gradients g (n_nodes, 2): B's rows (xx, yy, xy) have two
     nonzeros per column, skipped; the same sums in the same order (the same bits). c's rows and
@@ -155,7 +156,7 @@ def plane_add_btcb(g, w, c, shear, cb, ke):
             ke[2 * a + 1, j] += gy * cb[1, j] + gx * cb[2, j]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def plane_add_bts(g, w, sig6, fe):
     """:func:`add_bts` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
     for a in range(g.shape[0]):
@@ -164,7 +165,7 @@ def plane_add_bts(g, w, sig6, fe):
         fe[2 * a + 1] += w * (gy * sig6[1] + gx * sig6[3])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def point_strain(b, ue, idx, eps6):
     """Full Voigt strain eps6 (6,) = B u_e on the components idx, zero elsewhere (plane strain)."""
     nv, nd = b.shape
@@ -176,7 +177,7 @@ def point_strain(b, ue, idx, eps6):
         eps6[idx[k]] = s
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def plane_point_strain(g, ue, eps6):
     """:func:`point_strain` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped
     (the same sums in the same order, so the same bits)."""
@@ -195,7 +196,7 @@ def plane_point_strain(g, ue, eps6):
     eps6[3] = gxy
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.3e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Element stiffness matrices (n_el, nd, nd) = sum_q w det J B^T D B [N/m, per unit thickness in 2D].
 
@@ -215,7 +216,7 @@ def elastic_blocks(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray) -> np.nda
     return ke
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.1e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def strains(grads: np.ndarray, ue: np.ndarray) -> np.ndarray:
     """Full Voigt strains (n_el, n_qp, 6) at the Gauss points from element dofs ue (n_el, nd)."""
     n_el, n_qp, n_nodes, dim = grads.shape
@@ -255,7 +256,7 @@ def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: 
         ke[:, :] = 0.0
         for q in range(n_qp):
             if dim == 2:
-                plane_add_btcb(grads[e, q], wdet[e, q], d, 2, db, ke)
+                plane_add_btcb(grads[e, q], wdet[e, q], d, np.int64(2), db, ke)
             else:
                 b_matrix(grads[e, q], b)
                 add_btcb(b, wdet[e, q], d, idx, db, ke)
@@ -276,7 +277,7 @@ def internal_forces(grads: np.ndarray, wdet: np.ndarray, sigma: np.ndarray) -> n
         fy = np.einsum("eqa,eq->ea", gy, s[..., 1]) + np.einsum("eqa,eq->ea", gx, s[..., 3])
         return np.stack([fx, fy], axis=2).reshape(n_el, 2 * n_nodes)
     gz = gw[..., 2]
-    ein = lambda g, k: np.einsum("eqa,eq->ea", g, s[..., k])  # noqa: E731
+    ein = lambda g, k: np.einsum("eqa,eq->ea", g, s[..., k])
     fx = ein(gx, 0) + ein(gy, 3) + ein(gz, 5)
     fy = ein(gy, 1) + ein(gx, 3) + ein(gz, 4)
     fz = ein(gz, 2) + ein(gy, 4) + ein(gx, 5)

@@ -10,7 +10,7 @@ import numpy as np
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _cn_row(c, a, n0, n1, n2):
     """Row a of C N(n) (3 values): N(n)'s three nonzeros per column, in the order of the full sum."""
     return (c[a, 0] * n0 + c[a, 3] * n1 + c[a, 5] * n2,
@@ -80,15 +80,15 @@ def _cofactor(a, cof):
     return a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1] + a[0, 2] * cof[0, 2]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _acoustic9(c, n0, n1, n2):
     """A(n) of :func:`_acoustic` as 9 values, row by row (no arrays)."""
-    r0 = _cn_row(c, 0, n0, n1, n2)
-    r1 = _cn_row(c, 1, n0, n1, n2)
-    r2 = _cn_row(c, 2, n0, n1, n2)
-    r3 = _cn_row(c, 3, n0, n1, n2)
-    r4 = _cn_row(c, 4, n0, n1, n2)
-    r5 = _cn_row(c, 5, n0, n1, n2)
+    r0 = _cn_row(c, np.int64(0), n0, n1, n2)
+    r1 = _cn_row(c, np.int64(1), n0, n1, n2)
+    r2 = _cn_row(c, np.int64(2), n0, n1, n2)
+    r3 = _cn_row(c, np.int64(3), n0, n1, n2)
+    r4 = _cn_row(c, np.int64(4), n0, n1, n2)
+    r5 = _cn_row(c, np.int64(5), n0, n1, n2)
     return (n0 * r0[0] + n1 * r3[0] + n2 * r5[0], n0 * r0[1] + n1 * r3[1] + n2 * r5[1],
             n0 * r0[2] + n1 * r3[2] + n2 * r5[2],
             n1 * r1[0] + n0 * r3[0] + n2 * r4[0], n1 * r1[1] + n0 * r3[1] + n2 * r4[1],
@@ -97,7 +97,7 @@ def _acoustic9(c, n0, n1, n2):
             n2 * r2[2] + n1 * r4[2] + n0 * r5[2])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _cofactor9(a):
     """(det, cofactors row by row) of a 3x3 given as 9 values; :func:`_cofactor`'s formulas."""
     a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
@@ -113,7 +113,7 @@ def _cofactor9(a):
     return a00 * c00 + a01 * c01 + a02 * c02, (c00, c01, c02, c10, c11, c12, c20, c21, c22)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _det_grad3(c, n0, n1, n2):
     """(det A(n), d det A / d n) of :func:`_det_grad` as scalars (no arrays, the same arithmetic)."""
     det, cof = _cofactor9(_acoustic9(c, n0, n1, n2))
@@ -151,7 +151,7 @@ def _det_grad(c, n, grad):
     return det
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _ratio_grad3(c, ce, n0, n1, n2):
     """(r, dr/dn as 3 values) of :func:`_ratio_grad`, no arrays."""
     d1, g1 = _det_grad3(c, n0, n1, n2)
@@ -169,7 +169,7 @@ def _ratio_grad(c, ce, n, grad):
     return r
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _ratio3(c, ce, n0, n1, n2):
     """det A(n) / det A^e(n) for n = (n0, n1, n2), no arrays."""
     d1, _ = _cofactor9(_acoustic9(c, n0, n1, n2))

@@ -17,6 +17,7 @@ from rockfrac.laws.acoustic import (
     _ratio3,
     _ratio_grad3,
 )
+from rockfrac.threads import parallel_kernel
 
 # --------------------------------------------------------------------------------------------
 # plane strain: sweep, then bisection on d r / d theta around each local minimum
@@ -89,7 +90,7 @@ def _plane_strain_minima_swept(c, ce, n_sweep, sweep, theta_out, ratio_out):
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=3.9e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def screen_plane_strain(sigma, p, ce, n_sweep):
     """Min over a sweep of n_sweep in-plane normals of det A / det A^e (eq. 7-8, f and g at each
     stress), for many points: sigma (n, 6) [Pa] -> (n,). A coarse bound from above of the true
@@ -118,8 +119,7 @@ def screen_plane_strain(sigma, p, ce, n_sweep):
             for k in range(n_sweep):
                 _acoustic(c, normals[k], ai)
                 r = _cofactor(ai, ci) / det_e[k]
-                if r < best:
-                    best = r
+                best = min(best, r)
             out[i] = best
     return out
 
@@ -127,7 +127,7 @@ def screen_plane_strain(sigma, p, ce, n_sweep):
 MAX_MINIMA = 16  # local minima kept per point by minima_plane_strain (more: the caller falls back)
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=38e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def minima_plane_strain(sigma, p, ce, n_sweep, theta_out, ratio_out, count_out):
     """The plane-strain minima of :func:`localization_plane_strain` at many stresses sigma (n, 6)
     [Pa] at once (tangent of eq. 8 with f and g at each stress, as :func:`perfectly_plastic_tangent_at`

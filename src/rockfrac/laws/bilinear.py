@@ -38,6 +38,7 @@ from rockfrac.fem.interface import (
     pair_blocks_local,
 )
 from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw, hold_constrained, keep_committed
+from rockfrac.threads import parallel_kernel
 from rockfrac.values import Energy, Section, Strength
 
 # parameter vector
@@ -60,7 +61,7 @@ class BilinearParameters(Section):
                         "dissipates Gc)")
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def strength(kappa, p):
     """s(kappa) [Pa]."""
     if kappa >= p[P_DELTA]:
@@ -68,10 +69,10 @@ def strength(kappa, p):
     return p[P_SIGMA] * (1.0 - kappa / p[P_DELTA])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def effective(tt, tn, beta):
     """t = sqrt(<T_n>^2 + T_t^2 / beta^2) [Pa]."""
-    pos = tn if tn > 0.0 else 0.0
+    pos = max(0.0, tn)
     return math.sqrt(pos * pos + tt * tt / (beta * beta))
 
 
@@ -136,7 +137,7 @@ def return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     s_new[S_MODE] = MODE_PLASTIC if dk_full > 0.0 else 0.0
     if dk_full >= d_cap:
         s_new[S_TT] = 0.0
-        s_new[S_TN] = tr_n if tr_n < 0.0 else 0.0
+        s_new[S_TN] = min(0.0, tr_n)
         s_new[S_UPT] += dup_t
         s_new[S_UPN] += dup_n
         s_new[S_KAPPA] = kappa + dk_full
@@ -193,7 +194,7 @@ def point_update(du, s_old, p, s_new, D):
                       s_new, D)
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.08e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status):
     """The EP form at every point (see rockfrac.laws.traction_law)."""
     n = frame.shape[0]
@@ -210,7 +211,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
             pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.1e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched):
     """The RP form at every point: the return at the augmented trial lambda + r h (see

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
 from rockfrac.laws.cohesive_params import (
     MODE_ELASTIC,
@@ -82,6 +83,7 @@ from rockfrac.laws.cohesive_system import (
     _system,  # noqa: F401  (re-exported, as above)
     _work_start,
 )
+from rockfrac.threads import parallel_kernel
 
 # --------------------------------------------------------------------------------------------
 # EP form (Sect. 6.1, eq. 30-31)
@@ -113,7 +115,7 @@ def return_map(du, s_old, comp, p, s_new, D):
     penalty compliances; flow starts where the elastic path leaves the old surface.
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
     """
-    return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], START_CROSSING,
+    return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
                        comp[0], comp[1], s_old, p, s_new, D, workspace())
 
 
@@ -128,7 +130,7 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
                        s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
 
@@ -179,17 +181,17 @@ def ep_update(du, s_old, p, s_new, D):
     return ep_update_jump(du[0], du[1], s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
     """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`."""
-    return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], START_CROSSING,
+    return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
                        p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
 
 
 CHUNK = 256  # points per prange item: one workspace each, small enough to balance plastic clusters
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.5e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def ep_update_points(du, s_old, p, s_new, D, status):
     """EP return map at n points: du (n, 2) [m], s_old/s_new (n, N_STATE), D (n, 2, 2), status (n,)."""
     n = du.shape[0]

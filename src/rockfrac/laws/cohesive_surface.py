@@ -20,6 +20,7 @@ from rockfrac.laws.cohesive_params import (
     P_TANPHI_R,
     P_TANPSI_P,
 )
+from rockfrac.threads import parallel_kernel
 
 # --------------------------------------------------------------------------------------------
 # strengths q(eps) and small safe helpers
@@ -55,7 +56,7 @@ def strengths(eps_n, eps_s, p):
     return q[0], q[1], q[2], q[3]
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.05e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def strengths_points(eps_n, eps_s, p):
     """Strengths at many points: (n, 4) array of chi [Pa], c [Pa], tan phi, tan psi."""
     out = np.empty((eps_n.shape[0], 4))
@@ -100,7 +101,7 @@ def flow_direction(Tt, Tn, eps_n, eps_s, p):
     return _ratio(Tt, math.sqrt(Tt * Tt + a_g * a_g)), tpsi
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.05e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def flow_points(tt, tn, eps_n, eps_s, p):
     """Flow directions dG/dT (n, 2) [-] at many points (local frame)."""
     out = np.empty((tt.shape[0], 2))

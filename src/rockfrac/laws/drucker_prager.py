@@ -42,6 +42,7 @@ from rockfrac.laws.drucker_prager_params import (
     S_GAMMA,
     S_MODE,
 )
+from rockfrac.threads import parallel_kernel
 
 SQ2 = math.sqrt(2.0)
 SQ3 = math.sqrt(3.0)
@@ -152,13 +153,13 @@ INV_SQ3 = 1.0 / SQ3
 SQ18 = math.sqrt(18.0)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _copy_state(s_old, s_new):
     for kk in range(N_STATE):
         s_new[kk] = s_old[kk]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _cone_row(c, i, ui, vi, n0, n1, n2, n3, n4, n5):
     """Row i of the cone tangent without its I_dev diagonal: c[i, j] = ui nj + vi [j < 3]."""
     c[i, 0] = ui * n0 + vi
@@ -169,7 +170,7 @@ def _cone_row(c, i, ui, vi, n0, n1, n2, n3, n4, n5):
     c[i, 5] = ui * n5
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def return_map_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
     """:func:`return_map` without allocations: (k, mu) = moduli(p); ce (= elastic_matrix(p)) and the
     scratch work (5, 6) are no longer read (kept in the signature for the callers).
@@ -264,12 +265,12 @@ def return_map_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
         qf = q * beta
         ug = q * b
         a1 = k - 3.0 * beta * b * k * k * inv_x - bd * THIRD
-        _cone_row(c_out, 0, g * n0 + ug, qf * n0 + a1, n0, n1, n2, n3, n4, n5)
-        _cone_row(c_out, 1, g * n1 + ug, qf * n1 + a1, n0, n1, n2, n3, n4, n5)
-        _cone_row(c_out, 2, g * n2 + ug, qf * n2 + a1, n0, n1, n2, n3, n4, n5)
-        _cone_row(c_out, 3, g * n3, qf * n3, n0, n1, n2, n3, n4, n5)
-        _cone_row(c_out, 4, g * n4, qf * n4, n0, n1, n2, n3, n4, n5)
-        _cone_row(c_out, 5, g * n5, qf * n5, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(0), g * n0 + ug, qf * n0 + a1, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(1), g * n1 + ug, qf * n1 + a1, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(2), g * n2 + ug, qf * n2 + a1, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(3), g * n3, qf * n3, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(4), g * n4, qf * n4, n0, n1, n2, n3, n4, n5)
+        _cone_row(c_out, np.int64(5), g * n5, qf * n5, n0, n1, n2, n3, n4, n5)
         c_out[0, 0] += bd
         c_out[1, 1] += bd
         c_out[2, 2] += bd
@@ -455,7 +456,7 @@ def return_map_reference(eps, s_old, p, sigma_out, c_out, s_new):
                                      s_new)
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=0.3e-6)  # s per item, one thread (an estimate: no benchmark example calls it)
 def return_map_points(eps, s_old, p, sigma, c, s_new, status):
     """Return map at n points (prange, each one a :func:`return_map`).
 

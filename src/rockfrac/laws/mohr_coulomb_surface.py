@@ -37,6 +37,7 @@ from rockfrac.laws.cohesive_params import (
 from rockfrac.laws.cohesive_solve import workspace
 from rockfrac.laws.cohesive_system import START_GIVEN, START_NONE
 from rockfrac.laws.traction_law import TractionLaw, hold_constrained, keep_committed
+from rockfrac.threads import parallel_kernel
 from rockfrac.values import Angle, Energy, Rate, Section, Strength
 
 
@@ -73,7 +74,7 @@ class MohrCoulombParameters(Section):
         return self
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=1.4e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, status):
     """EP CSE at all points: local return map (paper eq. 31) and element blocks.
 
@@ -94,7 +95,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
             pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched, wk):
     """Point i of :func:`rp_points`."""
@@ -131,7 +132,7 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         junction_rows(r, w, eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
 
 
-@nb.njit(cache=True, parallel=True)
+@parallel_kernel(cost=1.4e-6)  # s per item, one thread (benchmarks/thread_rule.py)
 def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched):
     """RP CSE at all points: augmented Lagrangian (paper eq. 32-33) with the law's return map.

@@ -37,7 +37,7 @@ COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
 MODE_PLASTIC = 1.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
     """Start of a step at a committed plastic point (no jump increment yet): same traction, the
     committed tangent, so Newton's first iteration predicts continued flow (the laws' point loops)."""
@@ -46,7 +46,7 @@ def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
     d_new[:, :] = d_old
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def hold_constrained(s_old, s_new, d_new, t_t, t_n, aug, dgamma_slot, mode_slot):
     """The constrained branch of the RP form (paper eq. 33) for a point held there (active-set
     pinning): T = lambda + r h given as (t_t, t_n), D = r I."""

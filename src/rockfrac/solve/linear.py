@@ -17,6 +17,7 @@ import os
 import sys
 from typing import Any, Protocol
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -84,6 +85,7 @@ def _find_mkl_runtime() -> None:
     0.11 s per solver here, paid by every ``rockfrac run``. A path the user set is kept; where no
     runtime is found directly, pypardiso searches as before.
     """
+    _choose_mkl_threading()
     if os.environ.get("PYPARDISO_MKL_RT"):
         return
     for folder in ("lib", os.path.join("Library", "bin")):
@@ -91,6 +93,28 @@ def _find_mkl_runtime() -> None:
         if found:
             os.environ["PYPARDISO_MKL_RT"] = found[0]
             return
+
+
+def _choose_mkl_threading() -> None:
+    """Run MKL on GNU OpenMP (``MKL_THREADING_LAYER=GNU``, before MKL loads) where libgomp is
+    present, unless the user chose a layer.
+
+    MKL's single runtime picks its threading layer when it loads: GNU OpenMP if libgomp is already
+    in the process (Numba's parallel kernels load it when they first run), Intel's otherwise. The
+    two give PARDISO factors that differ in the last bits, so a run's numbers depended on whether a
+    parallel Numba kernel had run before the first solve: a run resumed from a checkpoint, or run
+    after another in the same process, differed from a fresh one at round-off. One fixed choice
+    makes them equal; GNU also keeps one OpenMP runtime in the process instead of two.
+    """
+    if os.environ.get("MKL_THREADING_LAYER"):
+        return
+    import ctypes
+
+    try:
+        ctypes.CDLL("libgomp.so.1")
+    except OSError:  # no GNU OpenMP here: MKL's default (Intel OpenMP)
+        return
+    os.environ["MKL_THREADING_LAYER"] = "GNU"
 
 
 class _PardisoFactor:
@@ -104,7 +128,15 @@ class _PardisoFactor:
 
 
 class Pardiso(_Backend):
-    """Intel MKL PARDISO through pypardiso (optional: the ``fast`` extra), unsymmetric (mtype 11).
+    """Intel MKL PARDISO through pypardiso (optional: the ``fast`` extra).
+
+    Unsymmetric (mtype 11), or symmetric indefinite (mtype -2, Bunch-Kaufman pivoting, on the upper
+    triangle) where the matrix is symmetric: with ``symmetric = "auto"`` every matrix of at least
+    ``symmetric_from`` rows is checked (max |A - A^T| <= ``symmetry_tol`` max |A|, through the
+    transposition map of its pattern, made once per pattern), and the analysis is redone when the
+    type changes (an elastic step, then a plastic one). Symmetric mode halves the factors' memory and
+    time (benchmarks/README.md, "Problem A"); small systems skip the check (not worth it there, and
+    their factors stay those of the unsymmetric path). ``symmetric = "unsymmetric"`` never checks.
 
     The sparsity pattern of a run's tangents never changes (Dirichlet rows are zeroed in place), so
     the analysis (fill-reducing ordering and symbolic factorization, phase 11) is kept; each
@@ -128,12 +160,19 @@ class Pardiso(_Backend):
 
     name = "pardiso"
     serial_below = 30_000  # rows below which PARDISO runs on one thread (see the class note)
+    symmetric = "auto"  # "auto": mtype -2 where the matrix is symmetric (checked); "unsymmetric": always 11
+    symmetric_from = 5_000  # rows from which "auto" checks the symmetry
+    symmetry_tol = 1e-13  # max |A - A^T| / max |A| accepted as symmetric (assembly round-off)
 
     def __init__(self) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
 
         self._solver: Any = None  # pypardiso's solver (its ctypes handle and arrays)
         self._pattern: _Pattern | None = None
+        self.mtype = 11  # PARDISO's matrix type of the analysed pattern: 11, or -2 (symmetric indefinite)
+        self._sym_pattern: _Pattern | None = None  # the pattern of _transpose
+        self._transpose: np.ndarray | None = None  # data position of A^T's entries (structurally symmetric)
+        self._upper: np.ndarray | None = None  # data positions of the upper triangle (mtype -2)
         self._ia: Any = None  # 1-based int32 index arrays of the analysed pattern
         self._ja: Any = None
         self._factored = False
@@ -163,7 +202,8 @@ class Pardiso(_Backend):
         return f
 
     def _call(self, phase: int, a: sp.csr_matrix | None, b: np.ndarray) -> np.ndarray:
-        """One PARDISO call on the analysed pattern (``a``'s values) with right-hand sides ``b``."""
+        """One PARDISO call on the analysed pattern (``a``'s values, its upper triangle in symmetric
+        mode) with right-hand sides ``b``."""
         import ctypes
 
         from pypardiso.pardiso_wrapper import PyPardisoError
@@ -173,7 +213,7 @@ class Pardiso(_Backend):
         err = ctypes.c_int32(0)
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
         n = 0 if a is None else a.shape[0]
-        data = np.zeros(1) if a is None else a.data
+        data = np.zeros(1) if a is None else (a.data if self.mtype == 11 else a.data[self._upper])
         ia = np.zeros(1, np.int32) if a is None else self._ia
         ja = np.zeros(1, np.int32) if a is None else self._ja
         # a small system: one MKL thread for this call (thread-local; the previous setting restored)
@@ -183,7 +223,7 @@ class Pardiso(_Backend):
         try:
             s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])),
                            ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
-                           ctypes.byref(ctypes.c_int32(11)), ctypes.byref(ctypes.c_int32(phase)),
+                           ctypes.byref(ctypes.c_int32(self.mtype)), ctypes.byref(ctypes.c_int32(phase)),
                            ctypes.byref(ctypes.c_int32(n)), data.ctypes.data_as(f64),
                            ia.ctypes.data_as(i32), ja.ctypes.data_as(i32), s.perm.ctypes.data_as(i32),
                            ctypes.byref(ctypes.c_int32(1 if b.ndim == 1 else b.shape[1])),
@@ -205,24 +245,49 @@ class Pardiso(_Backend):
             self._solver.pt[:] = 0  # a released handle starts again as a fresh one
             self._pattern = None
 
-    def analyse(self, a: sp.csr_matrix) -> None:
-        """Ordering and symbolic factorization of ``a``'s pattern (phase 11)."""
+    def analyse(self, a: sp.csr_matrix, mtype: int = 11) -> None:
+        """Ordering and symbolic factorization of ``a``'s pattern (phase 11) as matrix type ``mtype``."""
         import pypardiso
 
         if self._solver is None:
             _find_mkl_runtime()
             self._solver = pypardiso.PyPardisoSolver(mtype=11)
             self._set_threads_local = self._threads_function(self._solver.libmkl)
-        self._release(everything=True)
+        self._release(everything=True)  # with the type it was analysed as
         if not np.diff(a.indptr).all():
             raise SolverFailed("matrix has an empty row (singular)")
         self._pattern = _Pattern(a)
         self._rows = a.shape[0]
-        self._ia = (a.indptr + 1).astype(np.int32)
-        self._ja = (a.indices + 1).astype(np.int32)
+        self.mtype = mtype
+        if mtype == 11:
+            self._upper = None
+            self._ia = (a.indptr + 1).astype(np.int32)
+            self._ja = (a.indices + 1).astype(np.int32)
+        else:  # the upper triangle, diagonal included (every row keeps its diagonal slot)
+            rows = np.repeat(np.arange(a.shape[0]), np.diff(a.indptr))
+            self._upper = np.flatnonzero(a.indices >= rows)
+            self._ia = np.zeros(a.shape[0] + 1, dtype=np.int32)
+            self._ia[1:] = np.cumsum(np.bincount(rows[self._upper], minlength=a.shape[0]))
+            self._ia += 1
+            self._ja = (a.indices[self._upper] + 1).astype(np.int32)
         self._call(11, a, np.zeros((a.shape[0], 1)))
         self._new_step = False
         self.analyses += 1
+
+    def matrix_type(self, a: sp.csr_matrix) -> int:
+        """11, or -2 where ``symmetric = "auto"``, ``a`` has at least ``symmetric_from`` rows and is
+        symmetric to ``symmetry_tol`` (its pattern's transposition map is made once and kept)."""
+        if self.symmetric == "unsymmetric" or a.shape[0] < self.symmetric_from:
+            return 11
+        if self.symmetric != "auto":
+            raise ValueError(f"Pardiso.symmetric = {self.symmetric!r}: 'auto' or 'unsymmetric'")
+        if self._sym_pattern is None or not self._sym_pattern.same(a):
+            self._sym_pattern = _Pattern(a)
+            self._transpose = transpose_positions(a.indptr, a.indices)
+        if self._transpose is None or self._transpose.size == 0 and a.nnz:
+            return 11  # not even structurally symmetric
+        asym, scale = asymmetry(a.data, self._transpose)
+        return -2 if asym <= self.symmetry_tol * scale and scale > 0.0 else 11
 
     def begin_step(self) -> None:
         """A load step starts: its first factorization analyses afresh (see the class note)."""
@@ -234,8 +299,9 @@ class Pardiso(_Backend):
             a = a.astype(np.float64)
         if not a.has_sorted_indices:
             a = a.sorted_indices()
-        if self._pattern is None or self._new_step or not self._pattern.same(a):
-            self.analyse(a)
+        mtype = self.matrix_type(a)
+        if self._pattern is None or self._new_step or mtype != self.mtype or not self._pattern.same(a):
+            self.analyse(a, mtype)
         elif self._factored:
             self._release(everything=False)  # the previous factors
         self._call(22, a, np.zeros((a.shape[0], 1)))
@@ -404,3 +470,39 @@ def make_solver(name: str) -> LinearSolver:
         return SOLVERS[name]()
     except ImportError as err:
         raise ValueError(f"linear solver {name!r} is not installed here ({err}); available: {available()}") from None
+
+
+@nb.njit(cache=True)
+def transpose_positions(indptr, indices):
+    """For a CSR pattern with sorted rows: the data position of entry (j, i) for every entry (i, j),
+    in data order; an empty array if the pattern is not structurally symmetric."""
+    n = indptr.shape[0] - 1
+    out = np.empty(indices.shape[0], dtype=np.int64)
+    for i in range(n):
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            lo, hi = indptr[j], indptr[j + 1] - 1
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if indices[mid] < i:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            if hi < indptr[j] or indices[lo] != i:
+                return np.empty(0, dtype=np.int64)
+            out[q] = lo
+    return out
+
+
+@nb.njit(cache=True)
+def asymmetry(data, transpose):
+    """(max |A - A^T|, max |A|) over the entries, A^T's values at ``transpose``."""
+    asym = 0.0
+    scale = 0.0
+    for q in range(data.shape[0]):
+        d = abs(data[q] - data[transpose[q]])
+        if d > asym or d != d:
+            asym = d
+        if abs(data[q]) > scale:
+            scale = abs(data[q])
+    return asym, scale

@@ -1,14 +1,24 @@
-"""First-run and warm-run wall times of ``rockfrac paper``: what Numba's on-disk cache saves.
+"""First-run and warm-run wall times of ``rockfrac paper``: compiling, the Numba cache, threads.
 
-One command: ``.venv/bin/python benchmarks/startup.py``. Runs ``rockfrac paper`` three times in
-fresh processes with ``NUMBA_CACHE_DIR`` pointing at an empty temporary folder: the first run
-compiles every kernel and writes the cache, the next two load it. Also counts the kernels that
-could not be cached (Numba warns "Cannot cache compiled function"). Writes
-``results/startup.json`` and the table between the ``startup-table`` markers of README.md.
+One command: ``.venv/bin/python benchmarks/startup.py`` (``--no-busy`` skips the runs beside a busy
+process). Every run is a fresh ``rockfrac paper`` process with ``NUMBA_CACHE_DIR`` pointing at a
+temporary folder that starts empty:
+
+1. *first*: an empty cache, every kernel a run needs is compiled and written. The time spent
+   inside Numba's compiler is measured by its own event stream (``numba:compile``, the outermost
+   events only, so a kernel compiled inside another is not counted twice): *compiling* below.
+2. *warm* x 2: the kernels loaded from the cache.
+3. *warm, NUMBA_NUM_THREADS=1*: the same, Numba on one thread.
+4. beside a busy process (a pure-Python loop on one of the two cores): warm, and warm with one
+   Numba thread, interleaved twice. The thread rule (rockfrac.threads) should make the two alike.
+
+Also counts the kernels that could not be cached (Numba warns "Cannot cache compiled function").
+Writes ``results/startup.json`` and the table between the ``startup-table`` markers of README.md.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -19,54 +29,96 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from run import machine  # noqa: E402  (benchmarks/run.py: CPU, cores, library versions)
+from run import machine, replace_table  # noqa: E402
 
 HERE = Path(__file__).parent
-ROCKFRAC = Path(sys.executable).with_name("rockfrac")
+PY = Path(sys.executable)
+
+# rockfrac paper, with the outermost numba:compile events timed and printed to stderr at the end
+WRAPPER = """if True:
+    import sys, time
+    from numba.core import event
+    depth, total, start = [0], [0.0], [0.0]
+    class Compile(event.Listener):
+        def on_start(self, ev):
+            if depth[0] == 0:
+                start[0] = time.perf_counter()
+            depth[0] += 1
+        def on_end(self, ev):
+            depth[0] -= 1
+            if depth[0] == 0:
+                total[0] += time.perf_counter() - start[0]
+    event.register("numba:compile", Compile())
+    from rockfrac.cli import main
+    code = main(["paper", "--out", sys.argv[1], "--quiet"])
+    print(f"COMPILE_SECONDS {total[0]:.3f}", file=sys.stderr)
+    sys.exit(code)
+"""
 
 
-def one_run(cache: Path, out: Path) -> dict:
-    """Wall time of one ``rockfrac paper`` process and the kernels it could not cache."""
+def one_run(cache: Path, out: Path, threads: int | None = None) -> dict:
+    """Wall time of one ``rockfrac paper`` process, its seconds in Numba's compiler, uncached kernels."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONWARNINGS="default")
+    if threads is not None:
+        env["NUMBA_NUM_THREADS"] = str(threads)
+    load = os.getloadavg()[0]
     t0 = time.perf_counter()
-    proc = subprocess.run([str(ROCKFRAC), "paper", "--out", str(out)], env=env, capture_output=True, text=True)
+    proc = subprocess.run([str(PY), "-c", WRAPPER, str(out)], env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"rockfrac paper failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
     uncached = sorted(set(re.findall(r'Cannot cache compiled function "(\w+)"', proc.stderr)))
-    return {"wall_s": wall, "uncached": uncached}
+    compiling = float(re.findall(r"COMPILE_SECONDS ([0-9.]+)", proc.stderr)[-1])
+    return {"wall_s": wall, "compile_s": compiling, "uncached": uncached, "threads": threads, "load": load}
 
 
 def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--no-busy", action="store_true")
+    args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "numba"
-        runs = [one_run(cache, Path(tmp) / f"out{k}") for k in range(3)]
+        out = Path(tmp) / "out"
+        runs = {"first": one_run(cache, out)}
         files = sum(1 for _ in cache.rglob("*.nbi"))
+        runs["warm 1"] = one_run(cache, out)
+        runs["warm 2"] = one_run(cache, out)
+        runs["warm, 1 Numba thread"] = one_run(cache, out, threads=1)
+        if not args.no_busy:
+            busy = subprocess.Popen([str(PY), "-c", "while True: pass"])
+            try:
+                time.sleep(2.0)
+                for k in (1, 2):
+                    runs[f"warm, busy process beside ({k})"] = one_run(cache, out)
+                    runs[f"warm, 1 Numba thread, busy process beside ({k})"] = one_run(cache, out, threads=1)
+            finally:
+                busy.kill()
     info = machine()
     info["load_average"] = os.getloadavg()
     result = {"machine": info, "runs": runs, "cache_index_files": files}
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "startup.json").write_text(json.dumps(result, indent=1))
-    first, warm = runs[0]["wall_s"], min(r["wall_s"] for r in runs[1:])
+    first = runs["first"]
+    warm = min(runs["warm 1"]["wall_s"], runs["warm 2"]["wall_s"])
     lines = [
-        f"Machine: {info['cpu']}, {info['cores']} cores; Numba {info['numba']}; {info['date']}; "
-        f"load average before the table {info['load_average'][0]:.2f}.",
+        f"Machine: {info['cpu']}, {info['cores']} cores; Numba {info['numba']}; {info['date']}.",
         "",
-        "| run | wall time of `rockfrac paper` [s] |",
-        "|---|---|",
-        f"| first (empty Numba cache: every kernel compiled, {files} cache entries written) | {first:.1f} |",
-        *(f"| warm {k} (kernels loaded from the cache) | {r['wall_s']:.1f} |" for k, r in enumerate(runs[1:], 1)),
+        "| run | wall time of `rockfrac paper` [s] | in Numba's compiler [s] | load average before |",
+        "|---|---|---|---|",
+        *(f"| {name} | {r['wall_s']:.1f} | {r['compile_s']:.1f} | {r['load']:.2f} |" for name, r in runs.items()),
         "",
-        f"Compilation costs {first - warm:.1f} s of the first run; a warm run is {first / warm:.1f} x faster. "
-        + (f"Kernels that could not be cached: {', '.join(runs[0]['uncached'])}."
-           if runs[0]["uncached"] else "Every kernel was cached."),
+        f"The first run (empty cache, {files} cache entries written) spends {first['compile_s']:.1f} s compiling; "
+        f"a warm run takes {warm:.1f} s. "
+        + (f"Kernels that could not be cached: {', '.join(first['uncached'])}."
+           if first["uncached"] else "Every kernel was cached."),
     ]
-    text = (HERE / "README.md").read_text()
-    start, end = "<!-- startup-table:start -->", "<!-- startup-table:end -->"
-    block = start + "\n" + "\n".join(lines) + "\n" + end
-    text = re.sub(re.escape(start) + ".*?" + re.escape(end), block, text, flags=re.S) if start in text \
-        else text.rstrip() + "\n\n## Numba cache: first and warm runs of `rockfrac paper`\n\n" + block + "\n"
-    (HERE / "README.md").write_text(text)
+    busy_rows = [(runs[f"warm, busy process beside ({k})"]["wall_s"],
+                  runs[f"warm, 1 Numba thread, busy process beside ({k})"]["wall_s"]) for k in (1, 2)
+                 if f"warm, busy process beside ({k})" in runs]
+    if busy_rows:
+        lines.append("Beside a busy process, default threads / one Numba thread: "
+                     + ", ".join(f"{a / b:.2f}" for a, b in busy_rows) + ".")
+    replace_table("startup-table", lines)
     print("\n".join(lines))
 
 

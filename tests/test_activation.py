@@ -62,4 +62,6 @@ def test_the_landing_needs_no_retry_and_is_skipped_once_yielded(tmp_path):
     log = (tmp_path / "o" / "run.log").read_text()
     assert log.count("a surface first yields") == 1
     landing = log.split("a surface first yields")[1].split("\nstep ")[0]  # until the step is logged done
-    assert "cutting back" not in landing and " it 2:" not in landing  # converged at once: elastic
+    # no retry; converged at once (elastic bulk) or, where round-off puts the point just outside its
+    # yield surface (it sits on it by construction), after one active-set switch
+    assert "cutting back" not in landing and " it 3:" not in landing

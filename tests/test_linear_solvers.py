@@ -213,6 +213,7 @@ def test_pardiso_finds_mkl_in_the_environment_and_keeps_a_users_path(monkeypatch
     path = linear.os.environ["PYPARDISO_MKL_RT"]
     assert "mkl_rt" in linear.os.path.basename(path) and linear.os.path.isfile(path)
     solver = linear.Pardiso()
+    solver.dense_up_to = 0  # this small system through PARDISO itself
     a = sp.diags([np.full(9, -1.0), np.full(10, 4.0), np.full(9, -1.0)], [-1, 0, 1], format="csr")
     x = solver.factorize(a).solve(np.ones(10))
     assert np.abs(a @ x - 1.0).max() < 1e-13
@@ -282,3 +283,32 @@ def test_pardiso_symmetry_check_tolerance_and_small_systems():
     p.symmetric = "sometimes"
     with pytest.raises(ValueError, match="auto"):
         p.matrix_type(a)
+
+
+@pytest.mark.parametrize("name", ["superlu", *DIRECT])
+def test_tiny_systems_are_factorized_densely_with_the_sparse_answer(name):
+    """At most DENSE_UP_TO rows: LAPACK's LU (no sparse set-up), the sparse backend's answer to
+    round-off on the paper-size RP tangents (rigid: a saddle point, and yielding) and a 2-column
+    right-hand side (path following's bordered solve); singular and non-finite matrices fail."""
+    seq = tangents(rp_case(1), 45)  # the paper's RP specimen (20 rows): rigid, then yielding
+    solver = linear.make_solver(name)
+    sparse = linear.make_solver(name)
+    sparse.dense_up_to = 0
+    for t in (seq[1], seq[-1]):
+        assert t.shape[0] <= linear.DENSE_UP_TO
+        b = np.column_stack([np.ones(t.shape[0]), np.arange(t.shape[0], dtype=float)])
+        factor = solver.factorize(t)
+        assert type(factor).__name__ == "_DenseLU"
+        x = factor.solve(b)
+        other = sparse.factorize(t)
+        assert type(other).__name__ != "_DenseLU"
+        y = other.solve(b)
+        assert x.shape == b.shape and np.abs(x - y).max() <= 1e-10 * np.abs(y).max()
+        assert np.abs(t @ x - b).max() <= 1e-9 * np.abs(b).max()
+    singular = sp.csr_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
+    with pytest.raises(linear.SolverFailed, match="singular"):
+        solver.factorize(singular)
+    with pytest.raises(linear.SolverFailed, match="non-finite"):
+        solver.factorize(sp.csr_matrix(np.array([[1.0, np.nan], [0.0, 1.0]])))
+    big = elastic_tangent(8)  # 162 rows: above the threshold
+    assert big.shape[0] > linear.DENSE_UP_TO and type(solver.factorize(big)).__name__ != "_DenseLU"

@@ -64,7 +64,7 @@ def recorded_threads(solver: linear.Pardiso, a: sp.csr_matrix) -> tuple[list[int
 @needs_pardiso
 def test_mkl_thread_local_symbol_is_found_here():
     solver = linear.Pardiso()
-    solver.factorize(tridiagonal(50))
+    solver.factorize(tridiagonal(600))
     assert solver._set_threads_local is not None
     assert solver._set_threads_local.__name__ == "MKL_Set_Num_Threads_Local"
 

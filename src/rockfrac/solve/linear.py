@@ -23,6 +23,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 
+DENSE_UP_TO = 128  # rows up to which the direct backends factorize densely (crossover ~170: "Tiny systems")
+
+
 class SolverFailed(RuntimeError):
     """A backend could not solve: a failed factorization or a Krylov method that did not converge."""
 
@@ -39,12 +42,48 @@ class LinearSolver(Protocol):
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
 
 
+class _DenseLU:
+    """LU with partial pivoting of a small matrix held dense (LAPACK getrf / getrs), and one step
+    of iterative refinement per solve (as PARDISO does): the RP saddle points mix entries of 1e7
+    and 1e-2, where plain LU leaves an error that costs Newton an extra iteration."""
+
+    def __init__(self, a: sp.csr_matrix):
+        from scipy.linalg import lapack
+
+        self._a = a.toarray()
+        if not np.isfinite(self._a).all():
+            raise SolverFailed("matrix has non-finite entries")
+        self._lu, self._piv, info = lapack.dgetrf(self._a)
+        if info > 0:
+            raise SolverFailed(f"matrix is singular (dense LU: zero pivot in column {info})")
+        self._getrs = lapack.dgetrs
+
+    def _substitute(self, b: np.ndarray) -> np.ndarray:
+        x, info = self._getrs(self._lu, self._piv, b)
+        if info != 0:
+            raise SolverFailed(f"dense LU solve failed (LAPACK info {info})")
+        return x
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        x = self._substitute(b)
+        return x + self._substitute(b - self._a @ x)
+
+
 class _Backend:
-    """``solve`` as a factorization used once."""
+    """``solve`` as a factorization used once; systems of at most ``dense_up_to`` rows are
+    factorized densely (LAPACK), which every direct backend shares: on the paper's 16-24-dof
+    systems a sparse solver's set-up per call is 20x the arithmetic (benchmarks/README.md, "Tiny
+    systems"). 0 switches it off."""
 
     name = ""
+    dense_up_to = 0
 
     def factorize(self, a: sp.csr_matrix) -> Factorization:
+        if a.shape[0] <= self.dense_up_to:
+            return _DenseLU(a)
+        return self._factorize(a)
+
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
         raise NotImplementedError
 
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
@@ -55,8 +94,9 @@ class SuperLU(_Backend):
     """SciPy's SuperLU direct solver (always available)."""
 
     name = "superlu"
+    dense_up_to = DENSE_UP_TO
 
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
         return spla.splu(a.tocsc())
 
 
@@ -159,6 +199,7 @@ class Pardiso(_Backend):
     """
 
     name = "pardiso"
+    dense_up_to = DENSE_UP_TO
     serial_below = 30_000  # rows below which PARDISO runs on one thread (see the class note)
     symmetric = "auto"  # "auto": mtype -2 where the matrix is symmetric (checked); "unsymmetric": always 11
     symmetric_from = 5_000  # rows from which "auto" checks the symmetry
@@ -293,7 +334,7 @@ class Pardiso(_Backend):
         """A load step starts: its first factorization analyses afresh (see the class note)."""
         self._new_step = True
 
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
         a = sp.csr_matrix(a)
         if a.dtype != np.float64:
             a = a.astype(np.float64)
@@ -344,6 +385,7 @@ class Mumps(_Backend):
     """
 
     name = "mumps"
+    dense_up_to = DENSE_UP_TO
 
     def __init__(self) -> None:
         import mumps  # noqa: F401
@@ -353,7 +395,7 @@ class Mumps(_Backend):
         self.generation = 0
         self.analyses = 0
 
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
         import mumps
 
         a = sp.csr_matrix(a)
@@ -417,7 +459,7 @@ class KrylovAMG(_Backend):
     def __init__(self) -> None:
         import pyamg  # noqa: F401
 
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
         import pyamg
 
         a = sp.csr_matrix(a)

@@ -31,7 +31,13 @@ def same(a: Pattern, b: Pattern) -> None:
 
 def check_model(model) -> None:
     groups = [g.dofs for g in model.groups]
-    same(model.pattern, Pattern.build_sorted(model.n_dofs, groups))
+    reference = Pattern.build_sorted(model.n_dofs, groups)
+    same(Pattern.build(model.n_dofs, groups), reference)
+    # the model's own: the same arrays, its constant groups' slot maps dropped after assembly
+    assert np.array_equal(model.pattern.indptr, reference.indptr)
+    assert np.array_equal(model.pattern.indices, reference.indices)
+    for g, mine, ref in zip(model.groups, model.pattern.slots, reference.slots):
+        assert mine.size == 0 if g.constant else np.array_equal(mine, ref)
     # Dirichlet positions against their definition
     p = model.pattern
     row_of = np.repeat(np.arange(p.n), np.diff(p.indptr))

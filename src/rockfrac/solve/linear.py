@@ -101,17 +101,27 @@ class SuperLU(_Backend):
 
 
 class _Pattern:
-    """A CSR sparsity pattern remembered by identity of its arrays, and by value as a fallback."""
+    """A CSR sparsity pattern remembered by identity of its arrays, and by a digest of their values
+    as a fallback (no copy: at 2e6 dofs the index arrays are 150 MB)."""
 
     def __init__(self, a: sp.csr_matrix):
         self.indptr, self.indices = a.indptr, a.indices
-        self._indptr, self._indices = a.indptr.copy(), a.indices.copy()
+        self._digest = self._of(a)
+
+    @staticmethod
+    def _of(a: sp.csr_matrix) -> tuple:
+        import hashlib
+
+        h = hashlib.blake2b(digest_size=16)
+        for arr in (a.indptr, a.indices):  # hashed in place (buffer protocol), dtype included
+            h.update(str(arr.dtype).encode())
+            h.update(np.ascontiguousarray(arr).data.cast("B"))
+        return a.shape, a.nnz, h.digest()
 
     def same(self, a: sp.csr_matrix) -> bool:
         if a.indptr is self.indptr and a.indices is self.indices:
             return True
-        same = (a.indptr.shape == self._indptr.shape and a.indices.shape == self._indices.shape
-                and np.array_equal(a.indptr, self._indptr) and np.array_equal(a.indices, self._indices))
+        same = self._of(a) == self._digest
         if same:  # the next matrix built on the same arrays is recognized by identity
             self.indptr, self.indices = a.indptr, a.indices
         return same
@@ -158,13 +168,13 @@ def _choose_mkl_threading() -> None:
 
 
 class _PardisoFactor:
-    def __init__(self, owner: Pardiso, a: sp.csr_matrix, generation: int):
-        self._owner, self._a, self._generation = owner, a, generation
+    def __init__(self, owner: Pardiso, values: np.ndarray, generation: int):
+        self._owner, self._values, self._generation = owner, values, generation
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         if self._generation != self._owner.generation:
             raise SolverFailed("PARDISO factorization used after a newer one replaced it")
-        return self._owner.substitute(self._a, b)
+        return self._owner.substitute(self._values, b)
 
 
 class Pardiso(_Backend):
@@ -211,8 +221,6 @@ class Pardiso(_Backend):
         self._solver: Any = None  # pypardiso's solver (its ctypes handle and arrays)
         self._pattern: _Pattern | None = None
         self.mtype = 11  # PARDISO's matrix type of the analysed pattern: 11, or -2 (symmetric indefinite)
-        self._sym_pattern: _Pattern | None = None  # the pattern of _transpose
-        self._transpose: np.ndarray | None = None  # data position of A^T's entries (structurally symmetric)
         self._upper: np.ndarray | None = None  # data positions of the upper triangle (mtype -2)
         self._ia: Any = None  # 1-based int32 index arrays of the analysed pattern
         self._ja: Any = None
@@ -242,9 +250,9 @@ class Pardiso(_Backend):
         f.restype = ctypes.c_int
         return f
 
-    def _call(self, phase: int, a: sp.csr_matrix | None, b: np.ndarray) -> np.ndarray:
-        """One PARDISO call on the analysed pattern (``a``'s values, its upper triangle in symmetric
-        mode) with right-hand sides ``b``."""
+    def _call(self, phase: int, values: np.ndarray | None, b: np.ndarray) -> np.ndarray:
+        """One PARDISO call on the analysed pattern with the matrix values PARDISO reads (the upper
+        triangle's in symmetric mode; None: no matrix, for the release phases) and right-hand sides b."""
         import ctypes
 
         from pypardiso.pardiso_wrapper import PyPardisoError
@@ -253,10 +261,10 @@ class Pardiso(_Backend):
         x = np.zeros_like(b)
         err = ctypes.c_int32(0)
         i32, f64 = ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_double)
-        n = 0 if a is None else a.shape[0]
-        data = np.zeros(1) if a is None else (a.data if self.mtype == 11 else a.data[self._upper])
-        ia = np.zeros(1, np.int32) if a is None else self._ia
-        ja = np.zeros(1, np.int32) if a is None else self._ja
+        n = 0 if values is None else self._rows
+        data = np.zeros(1) if values is None else values
+        ia = np.zeros(1, np.int32) if values is None else self._ia
+        ja = np.zeros(1, np.int32) if values is None else self._ja
         # a small system: one MKL thread for this call (thread-local; the previous setting restored)
         set_local = self._set_threads_local if self._rows < self.serial_below else None
         previous = set_local(1) if set_local is not None else None
@@ -311,24 +319,18 @@ class Pardiso(_Backend):
             self._ia[1:] = np.cumsum(np.bincount(rows[self._upper], minlength=a.shape[0]))
             self._ia += 1
             self._ja = (a.indices[self._upper] + 1).astype(np.int32)
-        self._call(11, a, np.zeros((a.shape[0], 1)))
+        self._call(11, a.data if mtype == 11 else a.data[self._upper], np.zeros((a.shape[0], 1)))
         self._new_step = False
         self.analyses += 1
 
     def matrix_type(self, a: sp.csr_matrix) -> int:
         """11, or -2 where ``symmetric = "auto"``, ``a`` has at least ``symmetric_from`` rows and is
-        symmetric to ``symmetry_tol`` (its pattern's transposition map is made once and kept)."""
+        symmetric to ``symmetry_tol`` (one compiled pass, stopping at the first asymmetric entry)."""
         if self.symmetric == "unsymmetric" or a.shape[0] < self.symmetric_from:
             return 11
         if self.symmetric != "auto":
             raise ValueError(f"Pardiso.symmetric = {self.symmetric!r}: 'auto' or 'unsymmetric'")
-        if self._sym_pattern is None or not self._sym_pattern.same(a):
-            self._sym_pattern = _Pattern(a)
-            self._transpose = transpose_positions(a.indptr, a.indices)
-        if self._transpose is None or self._transpose.size == 0 and a.nnz:
-            return 11  # not even structurally symmetric
-        asym, scale = asymmetry(a.data, self._transpose)
-        return -2 if asym <= self.symmetry_tol * scale and scale > 0.0 else 11
+        return -2 if a.nnz and is_symmetric(a.indptr, a.indices, a.data, self.symmetry_tol) else 11
 
     def begin_step(self) -> None:
         """A load step starts: its first factorization analyses afresh (see the class note)."""
@@ -345,17 +347,19 @@ class Pardiso(_Backend):
             self.analyse(a, mtype)
         elif self._factored:
             self._release(everything=False)  # the previous factors
-        self._call(22, a, np.zeros((a.shape[0], 1)))
+        # the values PARDISO reads (the upper triangle in symmetric mode), kept: phase 33 refines
+        # iteratively against the matrix, and the caller may reuse its array
+        values = a.data.copy() if self.mtype == 11 else a.data[self._upper]
+        self._call(22, values, np.zeros((a.shape[0], 1)))
         self._factored = True
         self.generation += 1
-        # keep the values: phase 33 refines iteratively against the matrix (the caller may reuse it)
-        kept = sp.csr_matrix((a.data.copy(), a.indices, a.indptr), shape=a.shape)
-        return _PardisoFactor(self, kept, self.generation)
+        return _PardisoFactor(self, values, self.generation)
 
-    def substitute(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        """Solve with the current factors (phase 33, with PARDISO's iterative refinement on ``a``)."""
+    def substitute(self, values: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Solve with the current factors (phase 33, with PARDISO's iterative refinement against the
+        factorized matrix's ``values``)."""
         b = np.asfortranarray(b, dtype=np.float64)
-        return np.ascontiguousarray(self._call(33, a, b))
+        return np.ascontiguousarray(self._call(33, values, b))
 
     def __del__(self) -> None:
         if getattr(self, "_solver", None) is not None:
@@ -515,36 +519,48 @@ def make_solver(name: str) -> LinearSolver:
 
 
 @nb.njit(cache=True)
-def transpose_positions(indptr, indices):
-    """For a CSR pattern with sorted rows: the data position of entry (j, i) for every entry (i, j),
-    in data order; an empty array if the pattern is not structurally symmetric."""
+def is_symmetric(indptr, indices, data, rel_tol):
+    """|a_ij - a_ji| <= rel_tol max |a| for every entry of a CSR matrix with sorted rows (a missing
+    mirror entry counts as 0), all entries finite and not all zero; stops at the first that is not."""
     n = indptr.shape[0] - 1
-    out = np.empty(indices.shape[0], dtype=np.int64)
+    scale = 0.0
+    for q in range(data.shape[0]):
+        v = abs(data[q])
+        if not v < np.inf:
+            return False
+        if v > scale:
+            scale = v
+    if scale == 0.0:
+        return False
+    tol = rel_tol * scale
     for i in range(n):
         for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
-            lo, hi = indptr[j], indptr[j + 1] - 1
+            if j <= i:
+                continue
+            lo, hi = indptr[j], indptr[j + 1]  # a_ji by bisection in row j
             while lo < hi:
                 mid = (lo + hi) // 2
                 if indices[mid] < i:
                     lo = mid + 1
                 else:
                     hi = mid
-            if hi < indptr[j] or indices[lo] != i:
-                return np.empty(0, dtype=np.int64)
-            out[q] = lo
-    return out
-
-
-@nb.njit(cache=True)
-def asymmetry(data, transpose):
-    """(max |A - A^T|, max |A|) over the entries, A^T's values at ``transpose``."""
-    asym = 0.0
-    scale = 0.0
-    for q in range(data.shape[0]):
-        d = abs(data[q] - data[transpose[q]])
-        if d > asym or d != d:
-            asym = d
-        if abs(data[q]) > scale:
-            scale = abs(data[q])
-    return asym, scale
+            mirror = data[lo] if lo < indptr[j + 1] and indices[lo] == i else 0.0
+            if not abs(data[q] - mirror) <= tol:
+                return False
+    # entries below the diagonal without a mirror above
+    for i in range(n):
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if j >= i:
+                break
+            lo, hi = indptr[j], indptr[j + 1]
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if indices[mid] < i:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            if not (lo < indptr[j + 1] and indices[lo] == i) and not abs(data[q]) <= tol:
+                return False
+    return True

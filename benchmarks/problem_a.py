@@ -13,9 +13,12 @@ each one's peak memory (``ru_maxrss``) is its own:
 - **numpy-pardiso**: the plain vectorized NumPy baseline of PEERS.md (element matrices by einsum,
   COO -> CSR by SciPy, Dirichlet rows and columns by a diagonal mask, PARDISO unsymmetric through
   pypardiso): what a user writes without a FE engine.
-- **ngsolve**: NGSolve's own mesh, bilinear form and its default direct solver (sparse Cholesky
-  on the free dofs); installed with pip into ``.venv-peers`` on first use (rockfrac's ``.venv`` is
-  never touched).
+- **ngsolve**: NGSolve's own mesh, bilinear form and its sparse Cholesky on the free dofs;
+  installed with pip into ``.venv-peers`` on first use (rockfrac's ``.venv`` is never touched).
+- **dolfinx**: Debian's python3-dolfinx 0.5 (system Python; ``apt-get install python3-dolfinx``,
+  reported as not installed otherwise): its quadrilateral mesh, Q1 vector space, PETSc matrix with
+  the boundary conditions, MUMPS LU through a PETSc KSP (preonly); forms compiled by an untimed
+  N = 8 run.
 
 Every code reports its top reaction, which must equal E/(1-nu^2) u_top = -16483.516484 N/m (the
 field is uniform) to 1e-6; a code that does not is reported as failed. Times: *assembly* =
@@ -188,6 +191,58 @@ def ngsolve_run(n: int) -> dict:
             "reaction": reaction, "dofs": fes.ndof, "nnz": int(a.mat.nze), "peak_gib": peak_gib()}
 
 
+def dolfinx_run(n: int) -> dict:
+    import numpy as np
+    import ufl
+    from dolfinx import fem, mesh
+    from dolfinx.fem import petsc as fpetsc
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    t0 = time.perf_counter()
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, n, n, mesh.CellType.quadrilateral)
+    t1 = time.perf_counter()
+    space = fem.VectorFunctionSpace(msh, ("CG", 1))
+    uu, vv = ufl.TrialFunction(space), ufl.TestFunction(space)
+    mu, lam = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+
+    def sigma(w):
+        eps = ufl.sym(ufl.grad(w))
+        return 2 * mu * eps + lam * ufl.tr(eps) * ufl.Identity(2)
+
+    a = fem.form(ufl.inner(sigma(uu), ufl.sym(ufl.grad(vv))) * ufl.dx)
+    zero = fem.form(ufl.inner(fem.Constant(msh, PETSc.ScalarType((0.0, 0.0))), vv) * ufl.dx)
+
+    def dofs(sub, where):
+        return fem.locate_dofs_topological(space.sub(sub), 1, mesh.locate_entities_boundary(msh, 1, where))
+
+    top = dofs(1, lambda x: np.isclose(x[1], 1.0))
+    bcs = [fem.dirichletbc(PETSc.ScalarType(0.0), dofs(1, lambda x: np.isclose(x[1], 0.0)), space.sub(1)),
+           fem.dirichletbc(PETSc.ScalarType(0.0), dofs(0, lambda x: np.isclose(x[0], 0.0)), space.sub(0)),
+           fem.dirichletbc(PETSc.ScalarType(U_TOP), top, space.sub(1))]
+    mat = fpetsc.assemble_matrix(a, bcs=bcs)
+    mat.assemble()
+    b = fpetsc.assemble_vector(zero)
+    fpetsc.apply_lifting(b, [a], bcs=[bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    fpetsc.set_bc(b, bcs)
+    t2 = time.perf_counter()
+    ksp = PETSc.KSP().create(msh.comm)
+    ksp.setOperators(mat)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    uh = fem.Function(space)
+    ksp.solve(b, uh.vector)
+    uh.x.scatter_forward()
+    t3 = time.perf_counter()
+    r = fpetsc.assemble_vector(fem.form(ufl.inner(sigma(uh), ufl.sym(ufl.grad(vv))) * ufl.dx))
+    reaction = float(r.array[top].sum())
+    return {"mesh_s": t1 - t0, "assembly_s": t2 - t1, "solve_s": t3 - t2, "total_s": t3 - t0,
+            "reaction": reaction, "dofs": int(uh.x.array.size), "nnz": int(mat.getInfo()["nz_used"]),
+            "peak_gib": peak_gib()}
+
+
 def one(code: str, n: int) -> dict:
     if code.startswith("rockfrac"):
         from rockfrac import threads
@@ -201,6 +256,9 @@ def one(code: str, n: int) -> dict:
     if code == "ngsolve":
         ngsolve_run(8)
         return ngsolve_run(n)
+    if code == "dolfinx":
+        dolfinx_run(8)  # the forms compiled (FFCx, cached): untimed
+        return dolfinx_run(n)
     raise SystemExit(f"unknown code {code}")
 
 
@@ -217,13 +275,16 @@ def peer_python() -> Path:
     return py
 
 
+SYSTEM_PY = Path("/usr/bin/python3")  # Debian's python3-dolfinx (0.5, PETSc 3.18 + MUMPS) lives there
 CODES = {"rockfrac": ROCKFRAC_PY, "rockfrac-unsymmetric": ROCKFRAC_PY, "numpy-pardiso": ROCKFRAC_PY,
-         "ngsolve": None}
+         "ngsolve": None, "dolfinx": SYSTEM_PY}
 
 
 def run_one(code: str, n: int) -> dict:
     py = CODES[code] or peer_python()
     load = os.getloadavg()[0]
+    if code == "dolfinx" and subprocess.run([str(py), "-c", "import dolfinx"], capture_output=True).returncode:
+        return {"code": code, "n": n, "failed": ["not installed (apt-get install python3-dolfinx)"], "load": load}
     proc = subprocess.run([str(py), __file__, "--one", code, str(n)], capture_output=True, text=True)
     if proc.returncode != 0:
         return {"code": code, "n": n, "failed": proc.stderr.strip().splitlines()[-1:] or ["?"], "load": load}

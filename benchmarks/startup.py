@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from run import machine, replace_table  # noqa: E402
+from run import machine, replace_table
 
 HERE = Path(__file__).parent
 PY = Path(sys.executable)
@@ -50,26 +50,27 @@ WRAPPER = """if True:
                 total[0] += time.perf_counter() - start[0]
     event.register("numba:compile", Compile())
     from rockfrac.cli import main
-    code = main(["paper", "--out", sys.argv[1], "--quiet"])
+    code = main(["paper", "--out", sys.argv[1], "--quiet", "--jobs", sys.argv[2]])
     print(f"COMPILE_SECONDS {total[0]:.3f}", file=sys.stderr)
     sys.exit(code)
 """
 
 
-def one_run(cache: Path, out: Path, threads: int | None = None) -> dict:
+def one_run(cache: Path, out: Path, threads: int | None = None, jobs: int = 1) -> dict:
     """Wall time of one ``rockfrac paper`` process, its seconds in Numba's compiler, uncached kernels."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONWARNINGS="default")
     if threads is not None:
         env["NUMBA_NUM_THREADS"] = str(threads)
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
-    proc = subprocess.run([str(PY), "-c", WRAPPER, str(out)], env=env, capture_output=True, text=True)
+    proc = subprocess.run([str(PY), "-c", WRAPPER, str(out), str(jobs)], env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"rockfrac paper failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
     uncached = sorted(set(re.findall(r'Cannot cache compiled function "(\w+)"', proc.stderr)))
     compiling = float(re.findall(r"COMPILE_SECONDS ([0-9.]+)", proc.stderr)[-1])
-    return {"wall_s": wall, "compile_s": compiling, "uncached": uncached, "threads": threads, "load": load}
+    return {"wall_s": wall, "compile_s": compiling if jobs == 1 else None, "uncached": uncached, "threads": threads,
+            "jobs": jobs, "load": load}
 
 
 def main() -> None:
@@ -79,18 +80,24 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(tmp) / "numba"
         out = Path(tmp) / "out"
-        runs = {"first": one_run(cache, out)}
+        runs = {"first, one process": one_run(cache, out)}
         files = sum(1 for _ in cache.rglob("*.nbi"))
-        runs["warm 1"] = one_run(cache, out)
-        runs["warm 2"] = one_run(cache, out)
-        runs["warm, 1 Numba thread"] = one_run(cache, out, threads=1)
+        runs["warm 1, one process"] = one_run(cache, out)
+        runs["warm 2, one process"] = one_run(cache, out)
+        runs["warm, one process, 1 Numba thread"] = one_run(cache, out, threads=1)
+        cache2 = Path(tmp) / "numba2"
+        runs["first, two processes (the default here)"] = one_run(cache2, out, jobs=2)
+        runs["warm 1, two processes"] = one_run(cache2, out, jobs=2)
+        runs["warm 2, two processes"] = one_run(cache2, out, jobs=2)
         if not args.no_busy:
             busy = subprocess.Popen([str(PY), "-c", "while True: pass"])
             try:
                 time.sleep(2.0)
                 for k in (1, 2):
-                    runs[f"warm, busy process beside ({k})"] = one_run(cache, out)
-                    runs[f"warm, 1 Numba thread, busy process beside ({k})"] = one_run(cache, out, threads=1)
+                    runs[f"warm, one process, busy process beside ({k})"] = one_run(cache, out)
+                    runs[f"warm, one process, 1 Numba thread, busy process beside ({k})"] = one_run(cache, out,
+                                                                                                   threads=1)
+                runs["warm, two processes, busy process beside"] = one_run(cache2, out, jobs=2)
             finally:
                 busy.kill()
     info = machine()
@@ -98,25 +105,27 @@ def main() -> None:
     result = {"machine": info, "runs": runs, "cache_index_files": files}
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "startup.json").write_text(json.dumps(result, indent=1))
-    first = runs["first"]
-    warm = min(runs["warm 1"]["wall_s"], runs["warm 2"]["wall_s"])
+    first = runs["first, one process"]
+    warm = min(runs["warm 1, one process"]["wall_s"], runs["warm 2, one process"]["wall_s"])
+    fmt = lambda v: "-" if v is None else f"{v:.1f}"
     lines = [
         f"Machine: {info['cpu']}, {info['cores']} cores; Numba {info['numba']}; {info['date']}.",
         "",
-        "| run | wall time of `rockfrac paper` [s] | in Numba's compiler [s] | load average before |",
+        "| run of `rockfrac paper` | wall time [s] | in Numba's compiler [s] | load average before |",
         "|---|---|---|---|",
-        *(f"| {name} | {r['wall_s']:.1f} | {r['compile_s']:.1f} | {r['load']:.2f} |" for name, r in runs.items()),
+        *(f"| {name} | {r['wall_s']:.1f} | {fmt(r['compile_s'])} | {r['load']:.2f} |" for name, r in runs.items()),
         "",
-        f"The first run (empty cache, {files} cache entries written) spends {first['compile_s']:.1f} s compiling; "
-        f"a warm run takes {warm:.1f} s. "
+        f"The first run (empty cache, {files} cache entries written) spends {first['compile_s']:.1f} s in Numba's "
+        f"compiler (one process: the two-process runs compile in their workers, not counted); a warm run in one "
+        f"process takes {warm:.1f} s. "
         + (f"Kernels that could not be cached: {', '.join(first['uncached'])}."
            if first["uncached"] else "Every kernel was cached."),
     ]
-    busy_rows = [(runs[f"warm, busy process beside ({k})"]["wall_s"],
-                  runs[f"warm, 1 Numba thread, busy process beside ({k})"]["wall_s"]) for k in (1, 2)
-                 if f"warm, busy process beside ({k})" in runs]
+    busy_rows = [(runs[f"warm, one process, busy process beside ({k})"]["wall_s"],
+                  runs[f"warm, one process, 1 Numba thread, busy process beside ({k})"]["wall_s"]) for k in (1, 2)
+                 if f"warm, one process, busy process beside ({k})" in runs]
     if busy_rows:
-        lines.append("Beside a busy process, default threads / one Numba thread: "
+        lines.append("Beside a busy process, one process with Numba's default threads / with one Numba thread: "
                      + ", ".join(f"{a / b:.2f}" for a, b in busy_rows) + ".")
     replace_table("startup-table", lines)
     print("\n".join(lines))

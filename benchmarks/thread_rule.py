@@ -23,7 +23,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from run import machine, replace_table  # noqa: E402
+from run import machine, replace_table
 
 EXAMPLES = {"examples/band/band.toml": 3, "examples/grains/grains.toml": 1,  # steps: x --steps
             "examples/rock_tests/brazilian/everywhere.toml": 1, "examples/rock_tests/borehole/breakout.toml": 1,

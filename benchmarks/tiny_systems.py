@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
-from run import machine, replace_table  # noqa: E402
+from run import machine, replace_table
 
 
 def tangent(case: dict) -> sp.csr_matrix:

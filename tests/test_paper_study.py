@@ -115,3 +115,23 @@ def test_the_study_history_is_the_reference_to_round_off(study):
         assert np.abs(h["F_axial"] - f_ref).max() <= 1e-9 * np.abs(f_ref).max(), name
         its = sum(int(r["newton_iterations"]) for r in rows)
         assert abs(h["newton_iterations"].sum() - its) <= 0.01 * its, name
+
+
+def test_cases_in_worker_processes_give_the_same_bits_as_one_process(study, tmp_path):
+    """The fixture ran the study on two worker processes (the default on this machine); one process,
+    one case after the other, writes the same CSVs to the last bit."""
+    import os
+
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: the default is one process")
+    assert main(["paper", "--out", str(tmp_path), "--steps", "100", "--quiet", "--jobs", "1"]) == 0
+    files = sorted(p.relative_to(study) for p in study.rglob("*.csv"))
+    assert len(files) >= 15 and files == sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*.csv"))
+    for f in files:
+        assert (study / f).read_bytes() == (tmp_path / f).read_bytes(), f
+
+
+def test_jobs_must_be_a_whole_number_of_processes(capsys):
+    for bad in ("0", "x", "65"):
+        assert main(["paper", "--out", "unused", "--jobs", bad]) == 2  # argparse's usage error
+        assert "processes" in capsys.readouterr().err

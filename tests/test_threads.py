@@ -42,10 +42,10 @@ def test_every_prange_kernel_is_declared_through_the_rule():
 
 
 def test_the_package_kernels_are_registered_with_a_positive_threshold():
-    import rockfrac.elements.ede  # noqa: F401  (imports every kernel module)
-    import rockfrac.elements.plastic_solid  # noqa: F401
-    import rockfrac.laws.bifurcation  # noqa: F401
-    import rockfrac.laws.bilinear  # noqa: F401
+    import rockfrac.elements.ede
+    import rockfrac.elements.plastic_solid
+    import rockfrac.laws.bifurcation
+    import rockfrac.laws.bilinear
     import rockfrac.laws.drive  # noqa: F401
 
     names = {k.__qualname__ for k in threads.KERNELS}

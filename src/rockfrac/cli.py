@@ -98,7 +98,8 @@ def _cmd_paper(args: argparse.Namespace) -> int:
             bar.update(tasks[name], advance=1, info=f"step {row['step']} it {row['newton_iterations']} "
                        f"u={1e3 * row['u_axial']:.3f} mm F={row['F_axial']:.0f} N/m")
 
-        results = run_paper(args.out, args.steps, progress)
+        jobs = args.jobs if args.jobs is not None else min(2, os.cpu_count() or 1)
+        results = run_paper(args.out, args.steps, progress, jobs)
     for r in results:
         console.print(f"{r.name}: {'completed' if r.completed else escape(r.message)}, {r.iterations} iterations, "
                       f"{r.wall:.2f} s", highlight=False)
@@ -117,6 +118,17 @@ def _cmd_penalty(args: argparse.Namespace) -> int:
                       f"dissipation error {r.dissipation_error:.2e} {r.note}", highlight=False)
     console.print(f"report: {args.out / 'penalty.md'}")
     return 0
+
+
+def _jobs(text: str) -> int:
+    """--jobs: 1 to 64 cases at once."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of processes, got {text!r}") from None
+    if not 1 <= n <= 64:
+        raise argparse.ArgumentTypeError(f"expected 1 to 64 processes, got {n}")
+    return n
 
 
 def _steps(text: str) -> int:
@@ -151,6 +163,8 @@ def parser() -> argparse.ArgumentParser:
     pp.add_argument("--out", type=Path, required=True)
     pp.add_argument("--steps", type=_steps, default=400, help="axial steps per case (default 400)")
     pp.add_argument("--quiet", action="store_true")
+    pp.add_argument("--jobs", type=_jobs, default=None,
+                    help="cases run at once, each in its own process (default: 2 where the machine has 2 cores or more)")
     pp.set_defaults(func=_cmd_paper)
     ps = sub.add_parser("penalty-study", help="EP CSE penalty stiffness against RP: errors vs k, rule of thumb")
     ps.add_argument("--out", type=Path, required=True)

@@ -91,6 +91,7 @@ def _section(name: str, parameters: type[_Section]) -> type[CohesiveCommon]:
 
 
 SECTIONS: dict[str, type[CohesiveCommon]] = {name: _section(name, law.Parameters) for name, law in LAWS.items()}
+globals().update({cls.__name__: cls for cls in SECTIONS.values()})  # found by name: a case can be pickled
 CohesiveSection = SECTIONS[DEFAULT]  # the paper's law's section
 
 

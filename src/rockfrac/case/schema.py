@@ -187,6 +187,7 @@ def _drive_section(name: str, parameters: type[_Section]) -> type[DriveCommon]:
 
 
 DRIVE_SECTIONS = {name: _drive_section(name, law.Parameters) for name, law in LAWS.items()}
+globals().update({cls.__name__: cls for cls in DRIVE_SECTIONS.values()})  # found by name: picklable
 if TYPE_CHECKING:  # the union is made at run time from the registry
     DriveLaw = DriveCommon
 else:

@@ -36,7 +36,8 @@ class CaseResult:
     name: str
     history: dict[str, np.ndarray]
     points: dict[str, np.ndarray]
-    summary: RunSummary
+    summary: RunSummary  # its model (``built``) dropped where the case ran in a worker process
+    deformed: tuple[float, dict[str, list[np.ndarray]]]  # Fig. 6: magnification and polylines
 
     @property
     def completed(self) -> bool:
@@ -64,18 +65,76 @@ def study_cases(axial_steps: int = 400) -> dict[str, dict]:
     return cases
 
 
-def run_cases(out: Path, axial_steps: int = 400, progress=None) -> list[CaseResult]:
-    """Run the study's cases into out/cases/<name>."""
-    results = []
-    for name, case in study_cases(axial_steps).items():
-        folder = out / "cases" / name.replace(" ", "_").replace("=", "").replace(",", "")
-        step_progress = None
-        if progress is not None:
-            def step_progress(row: dict, n: str = name) -> None:
-                progress(n, row)
-        summary = run_case(parse_case(case, name), folder, overwrite=True, progress=step_progress)
-        results.append(CaseResult(name, read_csv(folder / "history.csv"), read_csv(folder / "points.csv"), summary))
-    return results
+def _folder(out: Path, name: str) -> Path:
+    return out / "cases" / name.replace(" ", "_").replace("=", "").replace(",", "")
+
+
+PROGRESS_KEYS = ("step", "newton_iterations", "u_axial", "F_axial")  # what a worker reports per step
+
+
+def deformed(summary: RunSummary) -> tuple[float, dict[str, list[np.ndarray]]]:
+    """The final deformed mesh of a run for Fig. 6: (magnification, polylines)."""
+    from rockfrac.output.plots import deformed_polylines, magnification
+
+    mag = magnification(summary.built, summary.result.u)
+    return mag, deformed_polylines(summary.built, summary.result.u, mag)
+
+
+def _run_in_worker(name: str, case: dict, folder: str, queue) -> tuple[RunSummary, tuple]:
+    """One case in a worker process: its summary without the model (whose load paths hold
+    closures) and what the figures need of the model."""
+    progress = None
+    if queue is not None:
+        def progress(row: dict) -> None:
+            queue.put((name, {k: row[k] for k in PROGRESS_KEYS}))
+    summary = run_case(parse_case(case, name), Path(folder), overwrite=True, progress=progress)
+    shape = deformed(summary)
+    summary.built = None
+    return summary, shape
+
+
+def run_cases(out: Path, axial_steps: int = 400, progress=None, jobs: int = 1) -> list[CaseResult]:
+    """Run the study's cases into out/cases/<name>, ``jobs`` at a time in worker processes (1: one
+    after the other in this process). Each case is deterministic (rockfrac.solve.linear fixes MKL's
+    threading layer), so the results are the same bits either way (tested)."""
+    cases = study_cases(axial_steps)
+    if jobs > 1:
+        done = _run_parallel(out, cases, progress, jobs)
+    else:
+        done = {}
+        for name, case in cases.items():
+            step_progress = None
+            if progress is not None:
+                def step_progress(row: dict, n: str = name) -> None:
+                    progress(n, row)
+            summary = run_case(parse_case(case, name), _folder(out, name), overwrite=True, progress=step_progress)
+            done[name] = (summary, deformed(summary))
+    return [CaseResult(name, read_csv(_folder(out, name) / "history.csv"), read_csv(_folder(out, name) / "points.csv"),
+                       *done[name]) for name in cases]
+
+
+def _run_parallel(out: Path, cases: dict[str, dict], progress, jobs: int) -> dict[str, tuple[RunSummary, tuple]]:
+    """The cases on ``jobs`` spawned worker processes (the longest, the EDE, first); progress rows
+    come back through a queue. On two cores the first run's compiling is shared between them."""
+    import multiprocessing
+    import queue as queue_module
+    from concurrent.futures import ProcessPoolExecutor, wait
+
+    context = multiprocessing.get_context("spawn")  # no fork of a process holding thread pools
+    with context.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
+        rows = manager.Queue() if progress is not None else None
+        futures = {name: pool.submit(_run_in_worker, name, case, str(_folder(out, name)), rows)
+                   for name, case in cases.items()}
+        pending = set(futures.values())
+        while pending:
+            _, pending = wait(pending, timeout=0.1)
+            while rows is not None:
+                try:
+                    name, row = rows.get_nowait()
+                except queue_module.Empty:
+                    break
+                progress(name, row)
+        return {name: f.result() for name, f in futures.items()}
 
 
 # --- numbers ------------------------------------------------------------------------------------
@@ -236,15 +295,13 @@ def _mesh_figure(out: Path, results: dict[str, CaseResult]) -> tuple[str, dict[s
     """Fig. 6: deformed (solid) and undeformed (dashed) meshes of the EDE and the EP CSE."""
     import matplotlib.pyplot as plt
 
-    from rockfrac.output.plots import deformed_polylines, draw_deformed, magnification
+    from rockfrac.output.plots import draw_deformed
 
     fig, axes = plt.subplots(1, 2, figsize=(7.2, 5.6))
     rows, mags = [], {}
     for ax, name in zip(axes, (EDE, EP9)):
-        s = results[name].summary
-        mag = magnification(s.built, s.result.u)
+        mag, lines = results[name].deformed
         mags[name] = mag
-        lines = deformed_polylines(s.built, s.result.u, mag)
         what = "one Hex8, embedded crack" if name == EDE else "two Q4, cohesive surface"
         draw_deformed(ax, lines, f"{name} ({what})\nu = {1e3 * results[name].history['u_axial'][-1]:.2f} mm, "
                                  f"displacements x {mag:g}")
@@ -326,11 +383,11 @@ def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[st
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
-def run_paper(out: str | Path, axial_steps: int = 400, progress=None) -> list[CaseResult]:
-    """The whole study into ``out``; returns the per-case results."""
+def run_paper(out: str | Path, axial_steps: int = 400, progress=None, jobs: int = 1) -> list[CaseResult]:
+    """The whole study into ``out`` (``jobs`` cases at a time); returns the per-case results."""
     out = prepare_output(out, ())  # a folder we can write; the study rewrites its own outputs
     t0 = time.perf_counter()
-    results = run_cases(out, axial_steps, progress)
+    results = run_cases(out, axial_steps, progress, jobs)
     names, mags = figures(out, results)
     report(out, results, names, mags, time.perf_counter() - t0)
     return results

@@ -135,3 +135,11 @@ def test_jobs_must_be_a_whole_number_of_processes(capsys):
     for bad in ("0", "x", "65"):
         assert main(["paper", "--out", "unused", "--jobs", bad]) == 2  # argparse's usage error
         assert "processes" in capsys.readouterr().err
+
+
+def test_a_coarse_study_completes_and_says_what_it_cannot_measure(tmp_path):
+    """At 10 steps the CSE cases yield in their first axial step: no elastic points for the
+    pre-peak slope, which the report says instead of failing."""
+    assert main(["paper", "--out", str(tmp_path), "--steps", "10", "--quiet", "--jobs", "1"]) == 0
+    report = (tmp_path / "report.md").read_text()
+    assert "not measurable at this step count" in report and "nan" not in report.split("## Figures")[0].lower()

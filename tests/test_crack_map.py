@@ -50,3 +50,34 @@ def test_the_picture_is_written_and_a_wrong_field_is_named(tmp_path):
     assert (tmp_path / "m.png").stat().st_size > 1000 and c.opening.size == 2
     with pytest.raises(ValueError, match="unknown cell field 'damage'; known: .*gamma"):
         save_crack_map(tmp_path / "n.png", f, 1.0, cell_field="damage")
+
+
+def test_the_hexahedron_of_the_paper_draws_its_embedded_crack(tmp_path):
+    """The paper's EDE (one Hex8 in plane strain) past localization: the crack map and the ParaView
+    fields carry its surface's trace on the z = 0 face, across the cell at the band angle, with the
+    cell's jump (issue 15: the hex8 crack map was empty)."""
+    import math
+
+    from rockfrac.case.schema import parse_case
+    from rockfrac.output.fields import step_output
+    from rockfrac.runner import run_case
+    from rockfrac.studies import table1
+
+    s = run_case(parse_case(table1.ede_case(axial_steps=300), "ede"), tmp_path / "o", overwrite=True)
+    g = s.built.embeddeds[0]
+    assert g.localized().tolist() == [0]
+    f = step_output(s.built, s.result.u)
+    c = crack_lines(f, magnification=0.0)  # undeformed: the trace itself
+    assert c.segments.shape == (1, 2, 2)
+    (x0, y0), (x1, y1) = sorted(map(tuple, c.segments[0]))
+    assert x0 == pytest.approx(0.0, abs=1e-12) and x1 == pytest.approx(0.04, abs=1e-12)  # across the cell
+    n = g.e_state[0, 1:4]
+    assert abs(n[2]) < 1e-12
+    assert math.degrees(math.atan2(y1 - y0, x1 - x0)) == pytest.approx(math.degrees(math.atan2(-n[0], n[1])), abs=1e-9)
+    jump = g.records()
+    assert c.opening[0] == pytest.approx(math.hypot(jump["jump_t"][0], jump["jump_n"][0]), rel=1e-12)
+    assert c.opening[0] > 1e-4
+    assert "1 crack segments" in (tmp_path / "o" / "run.log").read_text()
+    # a surface with a normal out of the x-y plane has no trace drawn (3D cracks are issue 16's)
+    g.sections[0] = np.nan
+    assert crack_lines(step_output(s.built, s.result.u), 0.0).segments.shape == (0, 2, 2)

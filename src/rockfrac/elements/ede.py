@@ -231,6 +231,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         self.anchor[e, :dim] = xc
         if dim == 2:
             self.segments[e] = surface_segment(self.x[e], n[:2], xc)
+        elif self.x.shape[1] == 8 and abs(n[2]) <= 1e-12 and np.ptp(self.x[e, :4, 2]) <= 1e-12 * np.ptp(self.x[e]):
+            self.sections[e] = surface_segment(self.x[e, :4, :2], n[:2], xc[:2])  # plane strain: the z face's trace
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])

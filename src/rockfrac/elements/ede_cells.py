@@ -17,7 +17,7 @@ class EmbeddedCells(DruckerPragerSolid):
     """The cells of :class:`rockfrac.elements.ede.EmbeddedDruckerPrager` apart from their localization."""
 
     checkpoint_attrs = ("state", "sigma", "dissipated", "crack_dissipated", "surface_dissipated", "e_state",
-                        "gradf", "active", "anchor", "segments", "last_event", "crack_count")
+                        "gradf", "active", "anchor", "segments", "sections", "last_event", "crack_count")
 
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays, the onsets (a list of records) packed into arrays."""
@@ -75,6 +75,9 @@ class EmbeddedCells(DruckerPragerSolid):
         self.active = np.zeros(cells.shape, dtype=bool)  # nodes on the + side of each cell's surface
         self.anchor = np.zeros((n_el, 3))  # a point of each cut cell's surface [m]
         self.segments = np.full((n_el, 2, 2), np.nan)  # 2D: the surface clipped to its cell [m]
+        # hexahedra of a plane-strain slab cut by a surface normal to z: its trace on the cell's z face
+        # (nodes 0-3) [m], for the crack map and the ParaView lines (NaN otherwise)
+        self.sections = np.full((n_el, 2, 2), np.nan)
         self.nodes = nodes
         if tracking == "local" and self.dim != 2:
             raise ValueError("tracking = 'local' follows crack paths in 2D meshes only")

@@ -67,17 +67,22 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None, dict]:
-    """End points of the embedded crack segments (2D), their host cells and fields."""
+    """End points of the embedded crack segments, their host cells and fields: in 2D the surface
+    clipped to its cell; for a hexahedron of a plane-strain slab cut normal to z, the surface's trace
+    on the cell's z face (a general 3D surface has no segment: not drawn)."""
     x0: list[np.ndarray] = []
     x1: list[np.ndarray] = []
     host: list[np.ndarray] = []
     data: dict[str, list[np.ndarray]] = {"jump": [], "traction": [], "c": [], "tan_phi": [], "state": []}
     for g in built.embeddeds:
         cells = g.localized()
-        if not cells.size or g.dim != 2:
+        lines = g.segments if g.dim == 2 else g.sections
+        drawn = np.isfinite(lines[cells]).all(axis=(1, 2))
+        if not drawn.any():
             continue
-        rec = g.records()
-        seg = g.segments[cells]
+        rec = {k: v[drawn] for k, v in g.records().items()}
+        cells = cells[drawn]
+        seg = lines[cells]
         x0.append(seg[:, 0])
         x1.append(seg[:, 1])
         host.append(g.cell_ids[cells])

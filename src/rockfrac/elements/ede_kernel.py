@@ -227,7 +227,8 @@ def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, stick, 
             fe[i] -= g_vec[i] * r / kz
             for j in range(nd):
                 ke[i, j] -= g_vec[i] * h_vec[j] / kz
-    e_new[:] = e_old
+    for k in range(e_old.shape[0]):  # a loop, not a slice copy: no shape-error path to compile
+        e_new[k] = e_old[k]
     e_new[E_GAMMA] = gamma
     e_new[E_ZETA] = e_old[E_ZETA] + dz
     e_new[E_DZETA] = dz
@@ -276,13 +277,16 @@ def _ede_cell(e, grads, wdet, ue, dp_old, dp_p, dp_k, dp_mu, dp_ce, scratch, ce,
     r_out[e] = 0.0
     k_out[e] = 0.0
     if e_old[e, E_LOC] == 1.0:
-        dp_new[e, :, :] = dp_old[e]  # the bulk is frozen: plastic strain held, elastic updates
+        for q in range(dp_old.shape[1]):  # the bulk is frozen: plastic strain held, elastic updates
+            for k in range(dp_old.shape[2]):
+                dp_new[e, q, k] = dp_old[e, q, k]
         dp_new[e, :, S_MODE] = 0.0
         st, r, kz, dzu = _localized(grads[e], wdet[e], ue[e], dp_old[e, :, 0:6], ce, gradf[e], e_old[e],
                                     law, dz[e], slide[e], stick[e], sigma[e], e_new[e], fe[e], ke[e], h_out[e])
         status[e], r_out[e], k_out[e], dz[e] = st, r, kz, dzu
         return
-    e_new[e, :] = e_old[e]
+    for k in range(e_old.shape[1]):
+        e_new[e, k] = e_old[e, k]
     st = dp_element_into(grads[e], wdet[e], ue[e], dp_old[e], dp_p, dp_k, dp_mu, dp_ce, dp_new[e], sigma[e],
                          fe[e], ke[e], scratch)
     status[e] = ST_DP_FAIL if st < 0 else ST_OK

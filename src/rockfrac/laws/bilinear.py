@@ -120,7 +120,8 @@ def return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     beta = p[P_BETA]
     beta2 = beta * beta
     kappa = s_old[S_KAPPA]
-    s_new[:] = s_old
+    for k in range(s_old.shape[0]):  # a loop, not a slice copy: no shape-error path to compile
+        s_new[k] = s_old[k]
     s_new[S_DGAMMA] = 0.0
     D[:, :] = 0.0
     t_tr = effective(tr_t, tr_n, beta)

@@ -41,16 +41,20 @@ MODE_PLASTIC = 1.0
 def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
     """Start of a step at a committed plastic point (no jump increment yet): same traction, the
     committed tangent, so Newton's first iteration predicts continued flow (the laws' point loops)."""
-    s_new[:] = s_old
+    for k in range(s_old.shape[0]):  # loops, not slice copies: no shape-error path to compile (~2 s)
+        s_new[k] = s_old[k]
     s_new[dgamma_slot] = 0.0
-    d_new[:, :] = d_old
+    for i in range(d_old.shape[0]):
+        for j in range(d_old.shape[1]):
+            d_new[i, j] = d_old[i, j]
 
 
 @nb.njit(cache=True)
 def hold_constrained(s_old, s_new, d_new, t_t, t_n, aug, dgamma_slot, mode_slot):
     """The constrained branch of the RP form (paper eq. 33) for a point held there (active-set
     pinning): T = lambda + r h given as (t_t, t_n), D = r I."""
-    s_new[:] = s_old[:]
+    for k in range(s_old.shape[0]):
+        s_new[k] = s_old[k]
     s_new[S_TT] = t_t
     s_new[S_TN] = t_n
     s_new[dgamma_slot] = 0.0

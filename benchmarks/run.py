@@ -286,6 +286,12 @@ def table_lines(results: list[dict], info: dict, total_s: float) -> list[str]:
     return lines
 
 
+def markdown_table(headers: list[str], rows: list[list]) -> list[str]:
+    """The lines of a Markdown table: a header row, the rule, one line per row (cells as given)."""
+    return ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers),
+            *("| " + " | ".join(str(c) for c in row) + " |" for row in rows)]
+
+
 def replace_table(name: str, lines: list[str]) -> bool:
     """Put ``lines`` between the ``<!-- name:start -->`` and ``<!-- name:end -->`` markers of
     README.md; False (nothing written) if the markers are missing."""

@@ -23,7 +23,7 @@ from pathlib import Path
 HERE = Path(__file__).parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from run import machine, replace_table
+from run import machine, markdown_table, replace_table  # noqa: E402  (after the sys.path line)
 
 EXAMPLES = {"examples/band/band.toml": 3, "examples/grains/grains.toml": 1,  # steps: x --steps
             "examples/rock_tests/brazilian/everywhere.toml": 1, "examples/rock_tests/borehole/breakout.toml": 1,
@@ -87,12 +87,12 @@ def main() -> None:
     lines = [f"Machine: {info['cpu']}, {info['cores']} cores; Numba {info['numba']}; {info['date']}; load average "
              f"{info['load_average'][0]:.2f}; examples: {', '.join(Path(e).stem for e in EXAMPLES)}, "
              f"{args.steps} steps each (band: {3 * args.steps}).", "",
-             "| kernel | calls | most items in a call | measured [us/item] | declared [us/item] | serial below [items] |",
-             "|---|---|---|---|---|---|"]
-    for name, r in by_name.items():
-        m = "-" if r["measured_s_per_item"] is None else f"{1e6 * r['measured_s_per_item']:.3f}"
-        lines.append(f"| `{name}` | {r['calls']} | {r['items_max']} | {m} | {1e6 * r['declared_s_per_item']:.3f} | "
-                     f"{r['serial_below']} |")
+             ]
+    rows = [[f"`{name}`", r["calls"], r["items_max"],
+             "-" if r["measured_s_per_item"] is None else f"{1e6 * r['measured_s_per_item']:.3f}",
+             f"{1e6 * r['declared_s_per_item']:.3f}", r["serial_below"]] for name, r in by_name.items()]
+    lines += markdown_table(["kernel", "calls", "most items in a call", "measured [us/item]", "declared [us/item]",
+                             "serial below [items]"], rows)
     print("\n".join(lines))
     replace_table("thread-rule-table", lines)
 

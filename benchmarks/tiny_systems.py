@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
-from run import machine, replace_table
+from run import machine, markdown_table, replace_table  # noqa: E402  (after the sys.path line)
 
 
 def tangent(case: dict) -> sp.csr_matrix:
@@ -79,11 +79,11 @@ def main() -> None:
     (HERE / "results" / "tiny_systems.json").write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
     lines = [f"Machine: {info['cpu']}, {info['cores']} cores; {info['date']}; load average "
              f"{info['load_average'][0]:.2f}; `DENSE_UP_TO` = {linear.DENSE_UP_TO} rows.", "",
-             "| system | dofs | dense LU [us / call] | PARDISO [us / call] | PARDISO / dense | max rel. difference |",
-             "|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['system']} | {r['dofs']} | {r['dense_us']:.1f} | {r['pardiso_us']:.1f} | "
-                     f"{r['pardiso_us'] / r['dense_us']:.2f} | {r['max_rel_diff']:.1e} |")
+             ]
+    lines += markdown_table(["system", "dofs", "dense LU [us / call]", "PARDISO [us / call]", "PARDISO / dense",
+                             "max rel. difference"],
+                            [[r["system"], r["dofs"], f"{r['dense_us']:.1f}", f"{r['pardiso_us']:.1f}",
+                              f"{r['pardiso_us'] / r['dense_us']:.2f}", f"{r['max_rel_diff']:.1e}"] for r in rows])
     print("\n".join(lines))
     replace_table("tiny-table", lines)
 

@@ -120,26 +120,23 @@ def _cmd_penalty(args: argparse.Namespace) -> int:
     return 0
 
 
-def _jobs(text: str) -> int:
-    """--jobs: 1 to 64 cases at once."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of processes, got {text!r}") from None
-    if not 1 <= n <= 64:
-        raise argparse.ArgumentTypeError(f"expected 1 to 64 processes, got {n}")
-    return n
+def _whole_number(unit: str, low: int, high: int):
+    """An argparse type: a whole number of ``unit`` from ``low`` to ``high``."""
+
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number of {unit}, got {text!r}") from None
+        if not low <= n <= high:
+            raise argparse.ArgumentTypeError(f"expected {low} to {high} {unit}, got {n}")
+        return n
+
+    return parse
 
 
-def _steps(text: str) -> int:
-    """--steps: a whole number of steps, 1 to 1e6."""
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of steps, got {text!r}") from None
-    if not 1 <= n <= 1_000_000:
-        raise argparse.ArgumentTypeError(f"expected 1 to 1000000 steps, got {n}")
-    return n
+_steps = _whole_number("steps", 1, 1_000_000)  # --steps
+_jobs = _whole_number("processes", 1, 64)  # --jobs: cases at once
 
 
 def parser() -> argparse.ArgumentParser:

@@ -150,6 +150,18 @@ def _incidence(n, flat, start, nd_of):
 
 
 @nb.njit(cache=True)
+def lower_bound(values, lo, hi, x):
+    """The first position p in [lo, hi] with values[p] >= x (values[lo:hi] sorted; hi if none)."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if values[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
+
+
+@nb.njit(cache=True)
 def _sorted_row(r, inc_ptr, inc_el, flat, start, nd_of, buf):
     """The sorted unique columns of row r in buf[:k]; returns k (insertion sort: rows are short)."""
     k = 0
@@ -201,14 +213,7 @@ def _fill_rows(inc_ptr, inc_el, inc_i, flat, start, nd_of, slot_start, width, in
                 nd = nd_of[e]
                 for j in range(nd):
                     c = flat[start[e] + j]
-                    lo, hi = 0, k - 1  # bisection in the sorted row
-                    while lo < hi:
-                        mid = (lo + hi) // 2
-                        if buf[mid] < c:
-                            lo = mid + 1
-                        else:
-                            hi = mid
-                    slots[slot_start[e] + i * nd + j] = a + lo
+                    slots[slot_start[e] + i * nd + j] = a + lower_bound(buf, 0, k - 1, c)
 
 
 @nb.njit(cache=True)

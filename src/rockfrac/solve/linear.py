@@ -22,6 +22,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rockfrac.fem.assembly import lower_bound
+
 
 DENSE_UP_TO = 128  # rows up to which the direct backends factorize densely (crossover ~170: "Tiny systems")
 
@@ -538,13 +540,7 @@ def is_symmetric(indptr, indices, data, rel_tol):
             j = indices[q]
             if j <= i:
                 continue
-            lo, hi = indptr[j], indptr[j + 1]  # a_ji by bisection in row j
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if indices[mid] < i:
-                    lo = mid + 1
-                else:
-                    hi = mid
+            lo = lower_bound(indices, indptr[j], indptr[j + 1], i)  # a_ji by bisection in row j
             mirror = data[lo] if lo < indptr[j + 1] and indices[lo] == i else 0.0
             if not abs(data[q] - mirror) <= tol:
                 return False
@@ -554,13 +550,7 @@ def is_symmetric(indptr, indices, data, rel_tol):
             j = indices[q]
             if j >= i:
                 break
-            lo, hi = indptr[j], indptr[j + 1]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if indices[mid] < i:
-                    lo = mid + 1
-                else:
-                    hi = mid
+            lo = lower_bound(indices, indptr[j], indptr[j + 1], i)
             if not (lo < indptr[j + 1] and indices[lo] == i) and not abs(data[q]) <= tol:
                 return False
     return True

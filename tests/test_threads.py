@@ -61,8 +61,15 @@ def _fill(out):
         out[i] = nb.get_thread_id()
 
 
+# Not cached: a cached function calling nb.get_thread_id() outside a parallel region, loaded from the
+# cache before Numba's threading layer has started, crashes the process (a Numba limitation; no
+# package kernel calls it)
+def fill_kernel() -> threads.ParallelKernel:
+    return threads.ParallelKernel(_fill, cost=1e-3, items_arg=0, cache=False)  # 4 ms: serial below 4 items
+
+
 def test_below_the_threshold_the_parallel_version_is_never_compiled():
-    kernel = threads.ParallelKernel(_fill, cost=1e-3, items_arg=0)  # 4 ms: serial below 4 items
+    kernel = fill_kernel()
     assert kernel.below == 4
     out = np.full(3, -1, dtype=np.int64)
     kernel(out)
@@ -76,7 +83,7 @@ def test_below_the_threshold_the_parallel_version_is_never_compiled():
 
 
 def test_force_overrides_the_rule(monkeypatch):
-    kernel = threads.ParallelKernel(_fill, cost=1e-3, items_arg=0)
+    kernel = fill_kernel()
     monkeypatch.setattr(threads, "FORCE", "serial")
     assert kernel.path(10**9) == "serial"
     monkeypatch.setattr(threads, "FORCE", "parallel")

@@ -45,13 +45,13 @@ def _renamed(func: Callable, suffix: str) -> Callable:
 class ParallelKernel:
     """A ``prange`` kernel: serial below ``below`` items (``args[items_arg].shape[0]``), else parallel."""
 
-    def __init__(self, func: Callable, cost: float, items_arg: int):
+    def __init__(self, func: Callable, cost: float, items_arg: int, cache: bool = True):
         self.py_func = func
         self.cost = cost  # s per item on one thread (measured: benchmarks/kernels.py --threads-rule)
         self.items_arg = items_arg
         self.below = max(1, int(SERIAL_WORK / cost))
-        self.serial: Any = nb.njit(cache=True)(_renamed(func, "__serial"))
-        self.parallel: Any = nb.njit(cache=True, parallel=True)(func)
+        self.serial: Any = nb.njit(cache=cache)(_renamed(func, "__serial"))
+        self.parallel: Any = nb.njit(cache=cache, parallel=True)(func)
         self.__doc__ = func.__doc__
         self.__name__ = func.__name__
         self.__qualname__ = func.__qualname__

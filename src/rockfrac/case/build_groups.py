@@ -107,7 +107,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
             g: SolidGroup = EmbeddedDruckerPrager(
                 mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
-                plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks, region=region, cell_ids=cells)
+                plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks,
+                tracking_length=emb.tracking_length, region=region, cell_ids=cells)
         elif dp:
             g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section), region=region, cell_ids=cells)
         else:

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from rockfrac.values import Angle, Coefficient, Count, Hardening, Modulus, Rate, Strength
+from rockfrac.values import Angle, Coefficient, Count, Hardening, Length, Modulus, Rate, Strength
 from rockfrac.values import Section as _Section
 
 
@@ -81,16 +81,26 @@ class EmbeddedSection(_Section):
     alpha_psi: Rate = Field(description="softening rate of psi [1/m]")
     band: BandChoice = Field(BandChoice.positive, strict=False, description="which conjugate band: 'positive' (band "
                              "angle from horizontal in (0, 90) deg) or 'negative' ((-90, 0) deg)")
-    tracking: Literal["none", "local"] = Field(
+    tracking: Literal["none", "local", "nonlocal"] = Field(
         "none", description="'none': each cell's surface through its centroid (the paper's Tahoe element); "
-        "'local': a cell next to a cut cell continues that cell's surface (a continuous crack path)")
+        "'local': a cell next to a cut cell continues that cell's surface (a continuous crack path) with "
+        "the normal of its own stress; 'nonlocal': with the normal of the stress averaged around the tip "
+        "over tracking_length (Wells & Sluys 2001)")
+    tracking_length: Length | None = Field(
+        None, description="tracking = 'nonlocal': Gaussian length [m] of the stress average at a crack tip "
+        "(a few cell sizes)")
     regions: list[str] | None = Field(None, description="regions that may localize (default: every "
                                       "drucker_prager region)")
-    max_cracks: Count = Field(1, description="tracking = 'local': most cracks started; further cuts "
+    max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started; further cuts "
                             "continue them from their tips")
 
     @model_validator(mode="after")
     def _residual_below_peak(self) -> EmbeddedSection:
+        if self.tracking == "nonlocal" and self.tracking_length is None:
+            raise ValueError("tracking = 'nonlocal' needs tracking_length [m] (the Gaussian length of the "
+                             "stress average at a crack tip)")
+        if self.tracking != "nonlocal" and self.tracking_length is not None:
+            raise ValueError(f"tracking_length only applies to tracking = 'nonlocal' (tracking is '{self.tracking}')")
         if self.phi_r > self.phi_p or (self.c_p != "eq28" and self.c_r > self.c_p):
             raise ValueError("residual values (c_r, phi_r) must not exceed the peak ones")
         if self.c_p != "eq28" and self.c_p <= 0:

@@ -76,12 +76,22 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         SCREEN_MARGIN -- where an onset can happen.
         """
         cells = self._candidates(state)
-        tips = self._tip_cells() if self.tracking == "local" else np.zeros(0, dtype=np.int64)
+        tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
         cells = np.union1d(cells, tips).astype(np.int64)
         if cells.size == 0:
             return 1.0, {}
         qmask = state[cells, :, S_MODE] == MODE_CONE
-        qmask[np.isin(cells, tips)] = True  # a crack tip cell: its stress direction decides (eq. 8)
+        at_tip = np.isin(cells, tips)
+        qmask[at_tip] = True  # a crack tip cell: its stress direction decides (eq. 8)...
+        if self.tracking == "nonlocal" and tips.size:  # ...or the nonlocal stress at its tip point,
+            extra = sigma[:, :1].copy()  # as one more point of the cell
+            for e in tips:
+                tip = self._tip(int(e))
+                near = self.paths.nonlocal_stress(tip[0], self._nonlocal_length()) if tip is not None else None
+                if near is not None and np.all(np.isfinite(near)):
+                    extra[e, 0] = near
+            sigma = np.concatenate([sigma, extra], axis=1)
+            qmask = np.concatenate([qmask, at_tip[:, None]], axis=1)
         ce, qi = np.nonzero(qmask)
         e_of = cells[ce]
         if e_of.size == 0:
@@ -120,6 +130,11 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             best = min(best, min(v[0] for v in where.values()))
         return best, where
 
+    def _nonlocal_length(self) -> float:
+        """tracking = "nonlocal": the Gaussian length of the stress average at a tip [m]."""
+        assert self.tracking_length is not None  # checked at construction
+        return self.tracking_length
+
     onset_tol = 1e-4  # localize when min det A / det A^e <= this (the stepping lands within it)
 
     def _localize(self) -> float:
@@ -130,10 +145,12 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cut cell whose surface ends on their shared edge continues it from that point (the crack tip),
         with the conjugate normal closest to the neighbour's; a cell with no cut neighbour starts a
         new crack through its centroid; a cell beside a crack but not at its tip waits (it stays a
-        Drucker-Prager cell) until the crack reaches it.
+        Drucker-Prager cell) until the crack reaches it. "nonlocal" (2D): as "local", but the tip
+        cell also opens where the nonlocal stress at its tip point (:meth:`CrackPaths.nonlocal_stress`)
+        loses ellipticity, and takes the normal of that stress.
         """
         eligible = None
-        if self.tracking == "local" and self.paths.cracks >= self.max_cracks:
+        if self.tracking != "none" and self.paths.cracks >= self.max_cracks:
             eligible = self._tip_cells()  # only crack tips can open: no new crack allowed
         best, where = self._scan(self.state, self.sigma, eligible)
         ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
@@ -198,6 +215,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
     def _open(self, e: int, ratio: float, loc, tip=None) -> None:
         point, reference = tip if tip is not None else (None, None)
         n, other = self._choose(loc, reference)
+        if tip is not None and self.tracking == "nonlocal":
+            n = self.paths.nonlocal_normal(self._global(e), tip[0], tip[1], self._nonlocal_length())
         c_p = self.localize_cell(e, n, point=point)
         s = self.e_state[e]
         band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))
@@ -211,7 +230,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
 
         n is signed to point up (the + side above, like the CSE's), t = (n_y, -n_x); active nodes
         (X_a - X_p) . n > 0; c_p from eq. (28) on the committed stress unless given (or set in the
-        law). The cell's bulk is frozen from here on; its segment (the surface clipped to the cell,
+        law; at least 0). The cell's bulk is frozen from here on; its segment (the surface clipped to the cell,
         2D) is kept for the crack path and the output.
         """
         n = np.zeros(3)
@@ -239,7 +258,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         q, p = t @ sig @ n, n @ sig @ n
         if c_p is None:
             tphi = math.tan(self.surface.phi_p)
-            c_p = self.surface.c_p if self.surface.c_p is not None else abs(q) + tphi * min(p, 0.0)  # eq. (28)
+            # eq. (28); never below 0: a cell whose traction is inside the friction cone (a crack tip cut
+            # by the nonlocal stress) gets a purely frictional surface, not a negative cohesion
+            c_p = self.surface.c_p if self.surface.c_p is not None else max(abs(q) + tphi * min(p, 0.0), 0.0)
         s = self.e_state[e]
         s[:] = 0.0
         s[K.E_LOC] = 1.0

@@ -52,17 +52,21 @@ class EmbeddedCells(DruckerPragerSolid):
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, law: DruckerPrager,
                  surface: EmbeddedLaw, band: str = "positive", plane_strain: bool = True, tracking: str = "none",
-                 max_cracks: int = 1, *, region: str = "bulk", cell_ids: np.ndarray | None = None):
+                 max_cracks: int = 1, *, region: str = "bulk", cell_ids: np.ndarray | None = None,
+                 tracking_length: float | None = None):
         super().__init__(nodes, cells, ref, law, region=region, cell_ids=cell_ids)
         self._paths: CrackPaths | None = None
         self.crack_dissipated = 0.0  # the embedded jumps' share of ``dissipated`` [J]
         self.surface_dissipated = 0.0  # sum of |S| <T> . dJ: the traction law's work on the surfaces (2D) [J]
         if band not in ("positive", "negative"):
             raise ValueError(f"band must be 'positive' or 'negative', got {band!r}")
-        if tracking not in ("none", "local"):
-            raise ValueError(f"tracking must be 'none' or 'local', got {tracking!r}")
+        if tracking not in ("none", "local", "nonlocal"):
+            raise ValueError(f"tracking must be 'none', 'local' or 'nonlocal', got {tracking!r}")
+        if (tracking == "nonlocal") != (tracking_length is not None):
+            raise ValueError("tracking_length [m] is needed by, and only by, tracking = 'nonlocal'")
         self.tracking = tracking
-        self.max_cracks = max_cracks  # tracking = "local": most cracks started (the others are continued)
+        self.tracking_length = tracking_length  # "nonlocal": the Gaussian length of the tip's stress average [m]
+        self.max_cracks = max_cracks  # tracking "local"/"nonlocal": most cracks started (the others are continued)
         self.surface = surface
         self.band = band
         self.plane_strain = plane_strain
@@ -79,8 +83,8 @@ class EmbeddedCells(DruckerPragerSolid):
         # (nodes 0-3) [m], for the crack map and the ParaView lines (NaN otherwise)
         self.sections = np.full((n_el, 2, 2), np.nan)
         self.nodes = nodes
-        if tracking == "local" and self.dim != 2:
-            raise ValueError("tracking = 'local' follows crack paths in 2D meshes only")
+        if tracking != "none" and self.dim != 2:
+            raise ValueError(f"tracking = {tracking!r} follows crack paths in 2D meshes only")
         self.onsets: list[Onset] = []
         nd = self.dofs.shape[1]
         self._dz = np.zeros(n_el)  # jump increments of the current iterate

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rockfrac.elements import ede_kernel as K
+from rockfrac.laws.bifurcation_plane import MAX_MINIMA, minima_plane_strain
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,41 @@ class CrackPaths:
                     if gk == k and not self.is_cut(c) and self.tip(c) is not None:
                         out.add(int(local))
         return out
+
+
+    def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
+        """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
+        stresses with the Gaussian weight exp(-r^2 / (2 length^2)) of their centroids' distance r to
+        the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close."""
+        x = np.asarray(point, dtype=float)[:2]
+        total, weight = np.zeros(6), 0.0
+        for g in self.groups:
+            r2 = ((g.x[..., :2].mean(axis=1) - x) ** 2).sum(axis=1)
+            near = np.flatnonzero((r2 <= 9.0 * length**2) & (g.e_state[:, K.E_LOC] == 0.0))
+            w = np.exp(-r2[near] / (2.0 * length**2))
+            total += np.einsum("e,eq,eqi->i", w, g.wdet[near], g.sigma[near])
+            weight += float(w @ g.wdet[near].sum(axis=1))
+        return total / weight if weight > 0.0 else np.full(6, np.nan)
+
+    def nonlocal_normal(self, gcell: int, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
+        """Normal (2,) that continues a crack from ``point`` (its tip, on the boundary of cell gcell):
+        of the conjugate bifurcation normals (eq. 7-8) of the nonlocal stress at the tip
+        (:meth:`nonlocal_stress`), the one closest to ``reference`` (the crack's last normal), signed
+        like it. The direction comes from the stress the crack grows into, not from the singular
+        field of the one cell at its tip. The tip cell's law gives the tangent."""
+        g, _ = self._cell(gcell)
+        ref = np.asarray(reference, dtype=float)[:2]
+        sigma = self.nonlocal_stress(point, length)[None, :]
+        if not np.all(np.isfinite(sigma)):
+            return ref / np.linalg.norm(ref)
+        theta, ratio = np.zeros((1, MAX_MINIMA)), np.full((1, MAX_MINIMA), np.inf)
+        count = np.zeros(1, dtype=np.int64)
+        minima_plane_strain(sigma, g.p, g.ce, g.SCREEN_SWEEP, theta, ratio, count)
+        k = min(int(count[0]), MAX_MINIMA)
+        lowest = np.argsort(ratio[0, :k], kind="stable")[:2]  # the conjugate pair
+        normals = np.stack([np.cos(theta[0, lowest]), np.sin(theta[0, lowest])], axis=1)
+        n = normals[int(np.argmax(np.abs(normals @ ref)))]
+        return n if n @ ref >= 0.0 else -n
 
 
 def share_crack_paths(groups: list, nodes: np.ndarray) -> None:

@@ -7,10 +7,11 @@ import numpy as np
 from rockfrac.case.build_mesh import mean_cell_size
 from rockfrac.case.build_program import require
 from rockfrac.case.cohesive_section import CohesiveForm
-from rockfrac.case.materials import BulkModel, BulkSection
+from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
+from rockfrac.elements.ede_cracks import cut_along
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
@@ -115,7 +116,23 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
             g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu, region=region, cell_ids=cells)
         groups.append(g)
 
-    share_crack_paths([g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2], mesh.nodes)
+    embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2]
+    share_crack_paths(embedded, mesh.nodes)
+    if emb is not None and emb.cracks:
+        cut_initial_cracks(emb, embedded, path)
     return groups
+
+
+def cut_initial_cracks(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager], path: str) -> None:
+    """Cut the cells of [[embedded.cracks]] before the first step (rockfrac.elements.ede_cracks)."""
+    if not groups:
+        raise CaseError(f"{path}: [embedded] cracks: no 2D cells may localize (cracks need quad4 or tri3 "
+                        "cells of a drucker_prager region of [embedded] regions)")
+    for k, crack in enumerate(emb.cracks):
+        n_cut, covered = cut_along(groups[0].paths, np.array(crack.points, dtype=float), crack.c_p)
+        if covered < 1.0 - 1e-6:
+            raise CaseError(f"{path}: [embedded] cracks[{k}]: {100 * (1 - covered):.3g} % of its length is not "
+                            "across cells that may localize (it leaves the mesh or the drucker_prager regions "
+                            "of [embedded], or runs along cell edges)")
 
 

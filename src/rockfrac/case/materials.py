@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from rockfrac.values import Angle, Coefficient, Count, Hardening, Length, Modulus, Rate, Strength
+from rockfrac.values import Angle, Coefficient, Coordinate, Count, Hardening, Length, Modulus, Rate, Strength
 from rockfrac.values import Section as _Section
 
 
@@ -66,6 +66,23 @@ class BandChoice(str, Enum):
     negative = "negative"
 
 
+class EmbeddedCrackSection(_Section):
+    """A crack present from the start (a joint or fault) in the embedded-discontinuity continuum (2D):
+    every cell the polyline crosses is cut before the first step, its surface the polyline's chord."""
+
+    points: list[list[Coordinate]] = Field(min_length=2, max_length=10_000,
+                                           description="the polyline's points [[x, y], ...] [m]")
+    c_p: Strength = Field(description="peak cohesion of its surfaces [Pa] (they soften by the [embedded] law)")
+
+    @model_validator(mode="after")
+    def _polyline(self) -> EmbeddedCrackSection:
+        if any(len(p) != 2 for p in self.points):
+            raise ValueError("points must be [x, y] pairs")
+        if any(p == q for p, q in zip(self.points[:-1], self.points[1:])):
+            raise ValueError("points: two consecutive points are the same")
+        return self
+
+
 class EmbeddedSection(_Section):
     """Embedded strong discontinuity (EDE, paper Sect. 4.1, 5): where det A = 0 is first reached, a
     surface through the element centre with the Mohr-Coulomb law and exponential softening in gamma."""
@@ -91,7 +108,9 @@ class EmbeddedSection(_Section):
         "(a few cell sizes)")
     regions: list[str] | None = Field(None, description="regions that may localize (default: every "
                                       "drucker_prager region)")
-    max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started; further cuts "
+    cracks: list[EmbeddedCrackSection] = Field(default_factory=list, max_length=10_000, description=(
+        "cracks present from the start: [[embedded.cracks]] points = [[x, y], ...], c_p = ... (2D)"))
+    max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started (those of cracks included); further cuts "
                             "continue them from their tips")
 
     @model_validator(mode="after")

@@ -1,0 +1,81 @@
+"""Cracks present from the start in the EDE continuum (2D): the cells a polyline crosses are cut at t = 0.
+
+A joint or fault given as a polyline: every cell of an EDE group that it crosses is localized before
+the first step, with the chord of the polyline through the cell as its surface (normal, + side and
+active nodes as :meth:`EmbeddedDruckerPrager.localize_cell`) and the given peak cohesion. A straight
+crack gives every cell the same line, so its cells' + sides agree and a uniform jump is exactly a
+rigid sliding of the two sides (no stress locking). The crack's ends inside the body are crack tips
+for tracking, and it counts toward ``max_cracks``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rockfrac.elements.ede_paths import CrackPaths
+
+LENGTH_TOL = 1e-9  # relative: chords shorter than this x the cell size are not cuts
+
+
+def clip_to_cell(xe: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, float] | None:
+    """Parameters (s0, s1) in [0, 1] of the part of segment a-b inside the convex cell xe (k, 2),
+    or None (Cyrus-Beck)."""
+    d = b - a
+    s0, s1 = 0.0, 1.0
+    k = xe.shape[0]
+    area2 = sum(xe[i, 0] * xe[(i + 1) % k, 1] - xe[(i + 1) % k, 0] * xe[i, 1] for i in range(k))
+    turn = 1.0 if area2 > 0.0 else -1.0  # counter-clockwise: the inside is to the left of each edge
+    for i in range(k):
+        p, q = xe[i], xe[(i + 1) % k]
+        edge = q - p
+        inward = turn * np.array([-edge[1], edge[0]])
+        num = float(inward @ (a - p))
+        den = float(inward @ d)
+        if abs(den) < 1e-300:
+            if num < 0.0:
+                return None
+            continue
+        s = -num / den
+        if den > 0.0:
+            s0 = max(s0, s)
+        else:
+            s1 = min(s1, s)
+        if s0 >= s1:
+            return None
+    return s0, s1
+
+
+def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, float]:
+    """Localize every EDE cell the polyline ``points`` (n, 2) [m] crosses (module doc); returns the
+    number of cells cut and the fraction of the polyline's length that lies in EDE cells."""
+    pts = np.asarray(points, dtype=float)
+    total = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+    covered = 0.0
+    cut = 0
+    for g in paths.groups:
+        xe = g.x[..., :2]
+        size = np.sqrt(g.wdet.sum(axis=1))
+        chords: dict[int, list[np.ndarray]] = {}
+        for a, b in zip(pts[:-1], pts[1:]):
+            length = float(np.linalg.norm(b - a))
+            t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
+            side, along = (xe - a) @ n, (xe - a) @ t  # (n_el, k): across and along the segment
+            near = np.flatnonzero((side.min(axis=1) <= 0.0) & (side.max(axis=1) >= 0.0) &
+                                  (along.max(axis=1) >= 0.0) & (along.min(axis=1) <= length))
+            for cell in near.tolist():  # the cells the segment's line crosses within its length only
+                s = clip_to_cell(xe[cell], a, b)
+                if s is None or (s[1] - s[0]) * np.linalg.norm(b - a) <= LENGTH_TOL * size[cell]:
+                    continue
+                chords.setdefault(cell, []).append(np.array([a + s[0] * (b - a), a + s[1] * (b - a)]))
+        for e, pieces in chords.items():
+            start, end = pieces[0][0], pieces[-1][1]  # a polyline vertex inside the cell: the chord across it
+            d = end - start
+            normal = np.array([-d[1], d[0]]) / np.linalg.norm(d)
+            side = (xe[e] - start) @ normal
+            if not (side.min() < -LENGTH_TOL * size[e] and side.max() > LENGTH_TOL * size[e]):
+                continue  # along an edge of the cell, or through a corner only: not a cut of this cell
+            g.localize_cell(e, normal, c_p=c_p, point=start)
+            covered += sum(float(np.linalg.norm(p[1] - p[0])) for p in pieces)
+            cut += 1
+    paths.cracks += 1
+    return cut, covered / total

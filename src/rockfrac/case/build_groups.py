@@ -133,6 +133,6 @@ def cut_initial_cracks(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager]
         if covered < 1.0 - 1e-6:
             raise CaseError(f"{path}: [embedded] cracks[{k}]: {100 * (1 - covered):.3g} % of its length is not "
                             "across cells that may localize (it leaves the mesh or the drucker_prager regions "
-                            "of [embedded], or runs along cell edges)")
+                            "of [embedded])")
 
 

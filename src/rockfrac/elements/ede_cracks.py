@@ -6,6 +6,12 @@ active nodes as :meth:`EmbeddedDruckerPrager.localize_cell`) and the given peak 
 crack gives every cell the same line, so its cells' + sides agree and a uniform jump is exactly a
 rigid sliding of the two sides (no stress locking). The crack's ends inside the body are crack tips
 for tracking, and it counts toward ``max_cracks``.
+
+A node on the crack would be on neither side: the cells that only touch the crack at that node
+would stay uncut and tie the two sides together there (the crack locks). A polyline segment that
+passes within NODE_TOL cell sizes of a node is therefore moved off the nodes by twice that along
+its normal, so that every such node is on one side and the cells around it are cut, some by a
+sliver.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import numpy as np
 from rockfrac.elements.ede_paths import CrackPaths
 
 LENGTH_TOL = 1e-9  # relative: chords shorter than this x the cell size are not cuts
+NODE_TOL = 1e-7  # relative: a segment this close to a node (x the cell size) is moved off it
 
 
 def clip_to_cell(xe: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, float] | None:
@@ -60,22 +67,29 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
             length = float(np.linalg.norm(b - a))
             t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
             side, along = (xe - a) @ n, (xe - a) @ t  # (n_el, k): across and along the segment
-            near = np.flatnonzero((side.min(axis=1) <= 0.0) & (side.max(axis=1) >= 0.0) &
-                                  (along.max(axis=1) >= 0.0) & (along.min(axis=1) <= length))
+            span = (along.max(axis=1) >= 0.0) & (along.min(axis=1) <= length)
+            if span.any() and np.min(np.abs(side[span]) / size[span, None]) < NODE_TOL:
+                shift = 2.0 * NODE_TOL * float(size[span].min())  # off the nodes (module doc)
+                a, b = a + shift * n, b + shift * n
+                side = side - shift
+            near = np.flatnonzero((side.min(axis=1) <= 0.0) & (side.max(axis=1) >= 0.0) & span)
             for cell in near.tolist():  # the cells the segment's line crosses within its length only
                 s = clip_to_cell(xe[cell], a, b)
                 if s is None or (s[1] - s[0]) * np.linalg.norm(b - a) <= LENGTH_TOL * size[cell]:
                     continue
-                chords.setdefault(cell, []).append(np.array([a + s[0] * (b - a), a + s[1] * (b - a)]))
+                chords.setdefault(cell, []).append(np.array([a + s[0] * (b - a), a + s[1] * (b - a), a, b]))
         for e, pieces in chords.items():
-            start, end = pieces[0][0], pieces[-1][1]  # a polyline vertex inside the cell: the chord across it
+            if len(pieces) == 1:  # the line of its polyline segment, through the segment's start: every
+                start, end = pieces[0][2], pieces[0][3]  # cell computes the same side for a node on it
+            else:  # a polyline vertex inside the cell: the chord across it
+                start, end = pieces[0][0], pieces[-1][1]
             d = end - start
             normal = np.array([-d[1], d[0]]) / np.linalg.norm(d)
             side = (xe[e] - start) @ normal
             if not (side.min() < -LENGTH_TOL * size[e] and side.max() > LENGTH_TOL * size[e]):
                 continue  # along an edge of the cell, or through a corner only: not a cut of this cell
             g.localize_cell(e, normal, c_p=c_p, point=start)
-            covered += sum(float(np.linalg.norm(p[1] - p[0])) for p in pieces)
+            covered += sum(float(np.linalg.norm(piece[1] - piece[0])) for piece in pieces)
             cut += 1
     paths.cracks += 1
     return cut, covered / total

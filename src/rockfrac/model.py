@@ -95,6 +95,20 @@ class Model:
         for g in self.groups:
             g.begin_step()
 
+    def set_step(self, mode: str, size: float) -> None:
+        """Tell the groups the control and size of the step about to be solved."""
+        for g in self.groups:
+            g.set_step(mode, size)
+
+    def implex_error(self) -> float | None:
+        """The largest IMPL-EX error of the groups at the converged iterate (None: no IMPL-EX group)."""
+        errors = [e for e in (g.implex_error() for g in self.groups) if e is not None]
+        return max(errors) if errors else None
+
+    def switch_to_implex(self) -> bool:
+        """Switch every group that can to IMPL-EX integration; True if one did."""
+        return any([g.switch_to_implex() for g in self.groups])
+
     def commit(self) -> None:
         for g in self.groups:
             g.commit()

@@ -258,7 +258,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
 
         sol = case.solver
         stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step,
-                                   locate_activation=sol.locate_activation)
+                                   locate_activation=sol.locate_activation, fallback=sol.fallback,
+                                   implex_tol=sol.implex_tol)
         t0 = time.perf_counter()
         with stop_on_signals() as request:
             newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,

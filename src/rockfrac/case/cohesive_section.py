@@ -51,6 +51,10 @@ class CohesiveCommon(_Section):
     kn: Stiffness | None = Field(None, description="EP only: normal penalty stiffness [Pa/m]")
     kt: Stiffness | None = Field(None, description="EP only: tangential penalty stiffness [Pa/m]")
     augmentation: Stiffness | None = Field(None, description="RP only: augmentation r [Pa/m]")
+    integration: Literal["implicit", "implex"] = Field(
+        "implicit", description="EP only: 'implicit' (the law's return at the end of each step) or 'implex' "
+        "(Oliver et al. 2008: equilibrium with the plastic jump extrapolated from the last two steps; one "
+        "Newton iteration per step, first order in the step size)")
 
     @model_validator(mode="after")
     def _placement(self) -> CohesiveCommon:
@@ -76,6 +80,9 @@ class CohesiveCommon(_Section):
             extra = [k for k in ("kn", "kt") if getattr(self, k) is not None]
             if extra:
                 raise ValueError(f"{', '.join(extra)} only apply to form = 'ep' (RP has no elastic jump)")
+            if self.integration != "implicit":
+                raise ValueError("integration = 'implex' only applies to form = 'ep' (it extrapolates the "
+                                 "plastic jump behind the penalty)")
         return self
 
 

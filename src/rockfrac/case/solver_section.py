@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from enum import Enum
+from typing import Literal
 
 from pydantic import Field, model_validator
 
@@ -39,6 +40,11 @@ class SolverSection(_Section):
     locate_activation: bool = Field(True, description="end a load-controlled step where a cohesive surface "
                                     "first yields (its peak becomes a step); false steps over it, as the paper's "
                                     "study does")
+    implex_tol: float = Field(0.05, ge=1e-6, le=10.0, description="IMPL-EX: largest |T_ex - T| of a step "
+                              "relative to the law's strength; a step above it is shortened, below it may grow")
+    fallback: Literal["none", "implex"] = Field(
+        "none", description="when a step fails at min_step: 'none' stops the run there (cleanly); 'implex' "
+        "switches the EP cohesive surfaces to IMPL-EX integration for the rest of the run (logged) and goes on")
 
 
 class OutputSection(_Section):

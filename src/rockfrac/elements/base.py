@@ -90,6 +90,19 @@ class ElementGroup(ABC):
     def begin_step(self) -> None:
         """Start a step: the trial state is the committed one."""
 
+    def switch_to_implex(self) -> bool:
+        """Integrate with IMPL-EX from the next step on (the [solver] fallback); True if the group
+        switched (it could, and was not already)."""
+        return False
+
+    def implex_error(self) -> float | None:
+        """The IMPL-EX error of the converged step, relative (None: the group does not use IMPL-EX)."""
+        return None
+
+    def set_step(self, mode: str, size: float) -> None:
+        """The step about to be solved: its control ("load" or "path") and its increment of that
+        control's parameter (load factor or path measure); groups that integrate in time use it."""
+
     def commit(self) -> None:
         """Make the trial state the committed one (after a converged step)."""
 

@@ -12,6 +12,7 @@ import numpy as np
 from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
+from rockfrac.laws.implex import implex_points
 from rockfrac.laws.traction_law import MODE_PLASTIC, S_TN, S_TT, S_UPN, S_UPT, TractionLaw
 
 
@@ -20,7 +21,7 @@ class _CohesiveGroup(ElementGroup):
 
     kind = "cohesive"
     rigid = False  # RP: constrained points have no elastic jump
-    checkpoint_attrs = ("state", "tangent", "dissipated")
+    checkpoint_attrs: tuple[str, ...] = ("state", "tangent", "dissipated")
 
     def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive"):
         self.name = name
@@ -180,15 +181,72 @@ class _CohesiveGroup(ElementGroup):
 
 
 class CohesiveEP(_CohesiveGroup):
-    """Elasto-plastic CSE, K^e = diag(kt, kn) as penalty (paper Sect. 6.1)."""
+    """Elasto-plastic CSE, K^e = diag(kt, kn) as penalty (paper Sect. 6.1).
+
+    integration = "implicit": the law's return map at the end of the step (backward Euler, the
+    paper's); "implex": the same update for the state, but equilibrium with the explicit traction
+    of :mod:`rockfrac.laws.implex` (one Newton iteration per step, first order in the step size).
+    """
 
     n_extra = 0
+    MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint
 
-    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive"):
+    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive",
+                 integration: str = "implicit"):
         if law.rigid:
             raise ValueError("an EP cohesive surface needs finite kn and kt")
+        if integration not in ("implicit", "implex"):
+            raise ValueError(f"integration must be 'implicit' or 'implex', got {integration!r}")
         super().__init__(points, law, name=name)
         self.dofs = points.dofs
+        self.up_prev = np.zeros((points.n, 2))  # IMPL-EX: committed plastic jumps one step earlier [m]
+        self.step_prev = np.zeros(2)  # IMPL-EX: (control mode, size) of the last committed step
+        self._step = np.zeros(2)  # ... and of the step being solved
+        self.explicit_work = 0.0  # IMPL-EX: sum of w (T_ex - T) . d[[u]] over the steps [J] (its error)
+        self._t_ex = np.zeros((points.n, 2))
+        self._u: np.ndarray | None = None  # the step's iterate and start (IMPL-EX's work account)
+        self._u_n: np.ndarray | None = None
+        self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
+
+    checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "explicit_work", "implex")
+
+    @property
+    def integration(self) -> str:
+        return "implex" if self.implex == 1.0 else "implicit"
+
+    def implex_error(self) -> float | None:
+        """IMPL-EX: the largest |T_ex - T| over the points at the converged iterate, relative to the
+        law's strength (T the implicit traction of the state): the scheme's error in the step, which
+        the stepping keeps below [solver] implex_tol (Oliver et al. 2008). None when implicit."""
+        if self.integration != "implex" or self.points.n == 0:
+            return None
+        gap = np.linalg.norm(self._t_ex - self.trial[:, S_TT:S_TN + 1], axis=1)
+        return float(gap.max()) / self.law.scale
+
+    def switch_to_implex(self) -> bool:
+        if self.implex == 1.0:
+            return False
+        self.implex = np.array(1.0)
+        return True
+
+    def set_step(self, mode: str, size: float) -> None:
+        self._step[:] = (self.MODES[mode], size)
+
+    def step_ratio(self) -> float:
+        """dt_{n+1} / dt_n for the extrapolation: the sizes of this step and the last committed one
+        when both are controlled alike, else 1."""
+        (mode, size), (mode_prev, size_prev) = self._step, self.step_prev
+        return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 1.0
+
+    def commit(self) -> None:
+        if self.integration == "implex":
+            assert self._u is not None and self._u_n is not None  # evaluated before committing
+            d_jump = self.points.local(self.points.jumps(self._u) - self.points.jumps(self._u_n))
+            self.explicit_work += float(np.einsum("pi,pi,p->", self._t_ex - self.trial[:, S_TT:S_TN + 1], d_jump,
+                                                  self.points.weight))
+        self.up_prev[:] = self.state[:, S_UPT:S_UPN + 1]  # kept in both modes: a switch has its history
+        self.step_prev[:] = self._step
+        super().commit()
 
     def elastic_energy(self, u: np.ndarray) -> float:
         """sum w (T_t^2 / kt + T_n^2 / kn) / 2 [J]: the penalty's elastic energy."""
@@ -202,6 +260,11 @@ class CohesiveEP(_CohesiveGroup):
         ke = np.empty((n, 4, 4))
         self.law.ep_points(pts.frame, pts.weight, djump,
                            self.state, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
+        if self.integration == "implex":  # the state as above; equilibrium with the explicit traction
+            assert self.law.kt is not None and self.law.kn is not None
+            implex_points(pts.frame, pts.weight, djump, self.state, self.up_prev, self.step_ratio(),
+                          float(self.law.kt), float(self.law.kn), self._t_ex, fe, ke)
+            self._u, self._u_n = u, u_n
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)

@@ -64,6 +64,8 @@ class SteppingOptions:
     easy_iterations: int = 6
     event_tol: float = 1e-4  # a step may end this far past an event (indicator in [-tol, 0])
     locate_activation: bool = False  # end a load step where a surface first yields (its peak)
+    fallback: str = "none"  # "implex": a step failing at min_step switches EP surfaces to IMPL-EX
+    implex_tol: float = 0.05  # largest IMPL-EX traction error of a step, relative to the law's strength
 
 
 @dataclass
@@ -168,6 +170,7 @@ def run_stages(
         d_end = stage.end_values(dofs, d_start)
         loads = Loads(d_start, d_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
+        last_size: dict[str, float] = {}  # the increment of the last converged step, by control
         path_nominal = stage.path.increment if stage.path else None
         nominal = {"load": 1.0 / stage.steps, "path": path_nominal or 0.0}
         size = dict(nominal)
@@ -192,8 +195,10 @@ def run_stages(
                 target = constraint.value(u, lam) + size["path"]
                 ctrl = PathControl(constraint.measure, target, 1e-9 * nominal["path"], size["load"],
                                    stage.path.rigid_ok, constraint.lam_coeff)
+                model.set_step("path", size["path"])
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
                 if res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
+                    model.set_step("load", 1.0 - lam)
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
             else:
                 size["load"] = min(size["load"], 1.0 - lam)
@@ -204,6 +209,7 @@ def run_stages(
                         step *= s
                         log(f"  {stage.name}: a surface first yields {s:.6f} of the way through the step; "
                             f"ending it there (load factor {lam + step:.9f})")
+                model.set_step("load", step)
                 res = newton_step(model, u, lam, lam + step, loads, solver, newton)
             _log_iterations(log, stage.name, count + 1, res)
             if res.interrupted:
@@ -221,12 +227,26 @@ def run_stages(
                 log(f"  {stage.name}: {mode}-controlled step from lam={lam:.6f} (size {size[mode]:.3e}) "
                     f"failed: {res.message}; cutting back")
                 size[mode] *= stepping.cutback
+                if (size[mode] < stepping.min_step * nominal[mode] * (1 - 1e-12) and stepping.fallback == "implex"
+                        and model.switch_to_implex()):
+                    log(f"  {stage.name}: step from lam={lam:.6f} failed at min_step; the EP cohesive surfaces "
+                        "switch to IMPL-EX integration for the rest of the run ([solver] fallback)")
+                    size[mode] = last_size.get(mode, nominal[mode])  # the extrapolation's own step: ratio 1
+                    continue
                 if size[mode] < stepping.min_step * nominal[mode] * (1 - 1e-12):
                     source = f" (loads from {stage.source})" if stage.source else ""
                     return RunResult(False, count, f"stopped in stage {stage.name!r}{source} at load factor "
                                      f"{lam:.6f}: {mode} increment below min_step after {cutbacks} "
                                      f"cutbacks ({res.message})", u)
                 continue
+            implex = model.implex_error()  # IMPL-EX's error in the step: first order in its size
+            if implex is not None and implex > stepping.implex_tol:
+                shrink = max(0.1, 0.8 * stepping.implex_tol / implex)
+                if size[mode] * shrink >= stepping.min_step * nominal[mode]:
+                    log(f"  {stage.name}: IMPL-EX error {implex:.3g} > {stepping.implex_tol:g} in the step; "
+                        f"shortening it by {shrink:.3f}")
+                    size[mode] *= shrink
+                    continue
             crossing = model.event()
             if crossing is not None and crossing[0] > stepping.event_tol and crossing[1] < -stepping.event_tol:
                 before, after = crossing  # end the step at the event: secant on the step size
@@ -237,6 +257,7 @@ def run_stages(
                     size[mode] *= frac
                     continue
             model.commit()
+            last_size = {mode: size[mode] if mode == "path" else res.lam - lam}
             if stage.path is not None and path_nominal is None:
                 first = stage.path.constraint(Committed(res.u, u, res.lam, loads, u_ref, f_ref))
                 change = 0.0 if first is None else abs(first.value(res.u, res.lam) - first.value(u, lam))
@@ -248,7 +269,8 @@ def run_stages(
             stage_steps += 1
             step_cutbacks, cutbacks = cutbacks, 0
             if res.iterations <= stepping.easy_iterations:
-                size[mode] = min(nominal[mode], size[mode] * stepping.grow)
+                grow = stepping.grow if implex is None else min(stepping.grow, 0.8 * stepping.implex_tol / max(implex, 1e-300))
+                size[mode] = min(nominal[mode], size[mode] * max(grow, 1.0))
             done = lam >= 1.0 - 1e-12
             position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,
                                 0 if done else stage_steps, {} if done else dict(size), False if done else forced,

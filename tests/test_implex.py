@@ -1,0 +1,95 @@
+"""IMPL-EX integration of the EP cohesive surfaces (Oliver, Huespe & Cante 2008): one Newton
+iteration per step, an error of first order in the step size, and the [solver] fallback that takes
+a fragmenting run past the point where implicit steps stop converging."""
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rockfrac.case.schema import CaseError, parse_case
+from rockfrac.output.csvout import read_csv
+from rockfrac.runner import run_case
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def paper_ep(steps: int, integration: str) -> dict:
+    d = tomllib.loads((ROOT / "examples" / "paper" / "cse_ep_k1e9.toml").read_text())
+    d["loading"]["axial_steps"] = steps
+    d["cohesive"]["integration"] = integration
+    d["solver"] = {"locate_activation": False, "implex_tol": 10.0}  # fixed steps: the scheme's own error
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    return d
+
+
+@pytest.fixture(scope="module")
+def paper_runs(tmp_path_factory):
+    out = {}
+    for integration, steps in [("implicit", 1600), ("implex", 100), ("implex", 200), ("implex", 400)]:
+        d = tmp_path_factory.mktemp(f"{integration}{steps}")
+        s = run_case(parse_case(paper_ep(steps, integration)), d)
+        assert s.result.completed
+        out[(integration, steps)] = read_csv(d / "history.csv")
+    return out
+
+
+def test_implex_takes_one_newton_iteration_per_step(paper_runs):
+    for steps in (100, 200, 400):
+        h = paper_runs[("implex", steps)]
+        assert np.all(h["newton_iterations"] == 1)
+    assert paper_runs[("implicit", 1600)]["newton_iterations"].max() > 1  # the implicit return iterates
+
+
+def test_implex_error_is_first_order_in_the_step(paper_runs):
+    """The peak (IMPL-EX overshoots the yield surface in the step where flow starts) and the force
+    at the end of the softening approach the implicit solution linearly: halving the step halves
+    the error (ratio 2 within 20 %)."""
+    ref = paper_runs[("implicit", 1600)]
+    peak_err = [paper_runs[("implex", n)]["F_axial"].max() - ref["F_axial"].max() for n in (100, 200, 400)]
+    assert all(e > 0 for e in peak_err)
+    ratios = [peak_err[0] / peak_err[1], peak_err[1] / peak_err[2]]
+    assert all(1.6 < r < 2.4 for r in ratios), ratios
+    end_err = [abs(paper_runs[("implex", n)]["F_axial"][-1] - ref["F_axial"][-1]) for n in (200, 400)]
+    assert end_err[1] < 0.7 * end_err[0] and end_err[1] < 2e-3 * ref["F_axial"][-1]
+
+
+def test_implex_fallback_takes_a_fragmenting_disc_to_failure(tmp_path):
+    """examples/rock_tests/brazilian/everywhere: implicit steps stop converging a few steps past the
+    peak (the load at 96 %); with [solver] fallback = "implex" the run goes on in IMPL-EX steps, each
+    one Newton iteration with its error kept below implex_tol, until the load has fallen below half
+    its peak (the case's stop rule), and its energy balance closes within 10 % of the dissipation."""
+    path = ROOT / "examples" / "rock_tests" / "brazilian" / "everywhere.toml"
+    d = tomllib.loads(path.read_text())
+    d["mesh"]["file"] = str(path.parent / d["mesh"]["file"])
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    d["solver"] = {"fallback": "implex"}
+    s = run_case(parse_case(d), tmp_path)
+    h = read_csv(tmp_path / "history.csv")
+    log = (tmp_path / "run.log").read_text()
+    assert "switch to IMPL-EX integration" in log
+    assert s.result.completed and "fell below 0.5" in s.result.message
+    r = np.abs(h["R_load_top_y"])
+    assert r[-1] < 0.5 * r.max()
+    switched = int(np.flatnonzero(np.diff(h["newton_iterations"] == 1))[-1]) + 1
+    assert np.all(h["newton_iterations"][switched:] == 1) and r.size - switched > 100
+    assert abs(h["energy_error"][-1]) < 0.1 * h["D_dissipated"][-1]
+
+
+@pytest.mark.parametrize("edit,expected", [
+    ({"cohesive": {"integration": "implex", "form": "rp"}}, "integration = 'implex' only applies to form = 'ep'"),
+    ({"cohesive": {"integration": "explicit"}}, "integration"),
+    ({"solver": {"fallback": "explicit"}}, "fallback"),
+    ({"solver": {"implex_tol": 0.0}}, "implex_tol"),
+])
+def test_implex_keys_are_checked(edit, expected):
+    d = paper_ep(10, "implicit")
+    for section, values in edit.items():
+        d[section].update(values)
+        if values.get("form") == "rp":
+            d[section].pop("kn")
+            d[section].pop("kt")
+    with pytest.raises(CaseError) as err:
+        parse_case(d, "c.toml")
+    assert expected in str(err.value) and "c.toml" in str(err.value)

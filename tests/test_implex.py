@@ -93,3 +93,33 @@ def test_implex_keys_are_checked(edit, expected):
     with pytest.raises(CaseError) as err:
         parse_case(d, "c.toml")
     assert expected in str(err.value) and "c.toml" in str(err.value)
+
+
+@pytest.mark.parametrize("form", ["ep", "rp"])
+def test_cohesive_surfaces_on_every_edge_separate_with_gc_per_unit_length(tmp_path, form):
+    """A 4 x 2 block with bilinear cohesive surfaces on every internal edge, pulled apart: its one
+    horizontal row of surfaces separates completely (no traction left, opening beyond delta_c; the
+    run ends there by its stop rule), the vertical ones stay shut, and the energy dissipated is G_c
+    times the separated length W: the law's own account to round-off, the work of the forces to the
+    time integration's accuracy (1.5 %)."""
+    width, gc, sigma_c = 0.04, 100.0, 1e6
+    coh = {"law": "bilinear", "form": form, "where": "all", "sigma_c": sigma_c, "Gc": gc}
+    if form == "ep":
+        coh.update(kn=1e14, kt=1e14)  # stiff enough: k L / E' = 100 (the penalty-study warning's bound)
+    d = {"mesh": {"kind": "block", "element": "quad4", "width": width, "height": 0.02, "nx": 4, "ny": 2},
+         "bulk": {"E": 1e10, "nu": 0.2}, "cohesive": coh,
+         "stages": [{"name": "pull", "steps": 100, "control": "path", "max_steps": 3000,
+                     "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0}, "top": {"x": 0.0, "y": 1e-3}},
+                     "stop": {"quantity": "R_top_y", "below_peak_fraction": 1e-6}}],
+         "output": {"vtk": False, "picture": False}}
+    s = run_case(parse_case(d), tmp_path)
+    assert s.result.completed and "fell below" in s.result.message
+    h, p = read_csv(tmp_path / "history.csv"), read_csv(tmp_path / "points.csv")
+    r = np.abs(h["R_top_y"])
+    assert r[-1] < 1e-6 * r.max()  # fully separated
+    last = p["step"] == p["step"].max()
+    horizontal = last & (np.abs(p["angle"]) < 0.1)
+    assert np.all(p["jump_n"][horizontal] > 2 * gc / sigma_c)
+    assert np.abs(p["jump_n"][last & ~horizontal]).max() < 1e-9
+    assert h["D_surface_law"][-1] == pytest.approx(gc * width, rel=1e-9)
+    assert h["D_dissipated"][-1] == pytest.approx(gc * width, rel=1.5e-2)

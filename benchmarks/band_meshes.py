@@ -15,6 +15,7 @@ without growth. Writes ``results/band_meshes.json`` and the ``band-meshes-table`
 from __future__ import annotations
 
 import json
+import os
 import math
 import sys
 import time
@@ -98,7 +99,7 @@ def post_peak_gap(runs: list[dict]) -> float:
 def main() -> None:
     tmp = HERE / "results" / "runs"
     tmp.mkdir(parents=True, exist_ok=True)
-    record: dict = {"machine": machine(), "runs": {}, "post_peak_gap": {}}
+    record: dict = {"machine": machine(), "load_start": os.getloadavg(), "runs": {}, "post_peak_gap": {}}
     rows = []
     for b in (0.321597, 0.1):
         grown = []
@@ -114,9 +115,12 @@ def main() -> None:
                              f"{x['F_end'] / x['F_closed_form']:.3f}", x["steps"], f"{x['wall_s']:.0f}"])
         record["post_peak_gap"][f"b={b}"] = post_peak_gap(grown)
         print(f"b = {b}: post-peak curves of the grown bands within {100 * record['post_peak_gap'][f'b={b}']:.1f} %")
+    record["load_end"] = os.getloadavg()
     (HERE / "results" / "band_meshes.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["b", "mesh", "band", "cut cells", "path reaches", "angles [deg]", "F peak [N/m]",
                             "F end [N/m]", "closed form [N/m]", "ratio", "steps", "wall [s]"], rows)
+    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
+    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
     lines += ["", "Post-peak curves of the three grown meshes at equal displacement, largest difference: " +
               ", ".join(f"{k}: {100 * v:.1f} %" for k, v in record["post_peak_gap"].items())]
     print("\n".join(lines))

@@ -14,6 +14,7 @@ the ``band-tracking-table`` markers of README.md.
 from __future__ import annotations
 
 import json
+import os
 import math
 import sys
 import time
@@ -52,7 +53,7 @@ def main() -> None:
     from rockfrac.output.csvout import read_csv
     from rockfrac.runner import run_case
 
-    rows, record = [], {"machine": machine(), "rules": {}}
+    rows, record = [], {"machine": machine(), "load_start": os.getloadavg(), "rules": {}}
     for name, tracking in RULES.items():
         out = HERE / "results" / "runs" / f"band_{tracking['tracking']}"  # gitignored
         t0 = time.perf_counter()
@@ -78,9 +79,12 @@ def main() -> None:
         rows.append([name, st.shape[0], end, f"{ang.min():.1f}-{ang.max():.1f}", f"{force:.0f}",
                      f"{ref:.0f}", f"{force / ref:.2f}", s.result.steps, f"{wall:.0f}"])
     (HERE / "results").mkdir(exist_ok=True)
+    record["load_end"] = os.getloadavg()
     (HERE / "results" / "band_tracking.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["tracking", "cut cells", "path ends at", "segment angles [deg]", "F end [N/m]",
                             "closed form [N/m]", "ratio", "steps", "wall [s]"], rows)
+    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
+    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
     print("\n".join(lines))
     replace_table("band-tracking-table", lines)
 

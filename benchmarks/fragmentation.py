@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import math
 import re
 import sys
@@ -47,7 +48,7 @@ def main() -> None:
     base = tomllib.loads((ROOT / "examples" / "rock_tests" / "brazilian" / "everywhere.toml").read_text())
     base["mesh"]["file"] = str(msh)
     base["output"] = {"vtk": False, "picture": False, "points": False}
-    record: dict = {"machine": machine(), "size": args.size, "runs": {}}
+    record: dict = {"machine": machine(), "load_start": os.getloadavg(), "size": args.size, "runs": {}}
     rows = []
     for form in ("ep", "rp"):
         for steps in (100, 200):
@@ -87,10 +88,13 @@ def main() -> None:
                          switched if switched is not None else "-", f"{wall:.0f}", f"{r.max() / 1e3:.0f}",
                          f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4f}", f"{rec['D_surface_law']:.4f}",
                          ended])
+    record["load_end"] = os.getloadavg()
     (HERE / "results" / "fragmentation.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["form", "nominal steps", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
                             "D (law) [J/m]", "ended"], rows)
+    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
+    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
     print("\n".join(lines))
     replace_table("fragmentation-table", lines)
 

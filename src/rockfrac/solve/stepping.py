@@ -269,7 +269,9 @@ def run_stages(
             stage_steps += 1
             step_cutbacks, cutbacks = cutbacks, 0
             if res.iterations <= stepping.easy_iterations:
-                grow = stepping.grow if implex is None else min(stepping.grow, 0.8 * stepping.implex_tol / max(implex, 1e-300))
+                grow = stepping.grow
+                if implex is not None:  # IMPL-EX: no faster than its error allows
+                    grow = min(grow, 0.8 * stepping.implex_tol / max(implex, 1e-300))
                 size[mode] = min(nominal[mode], size[mode] * max(grow, 1.0))
             done = lam >= 1.0 - 1e-12
             position = Position(index + 1 if done else index, 0.0 if done else lam, u, count,

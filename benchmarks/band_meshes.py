@@ -14,9 +14,8 @@ without growth. Writes ``results/band_meshes.json`` and the ``band-meshes-table`
 
 from __future__ import annotations
 
-import json
-import os
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -29,7 +28,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(ROOT / "tests"))
 from band_tracking import case as band_case  # noqa: E402
 from band_tracking import closed_form  # noqa: E402
-from run import machine, markdown_table, replace_table  # noqa: E402
+from run import machine, markdown_table, publish  # noqa: E402
 
 W, H = 0.04, 0.08
 
@@ -115,17 +114,11 @@ def main() -> None:
                              f"{x['F_end'] / x['F_closed_form']:.3f}", x["steps"], f"{x['wall_s']:.0f}"])
         record["post_peak_gap"][f"b={b}"] = post_peak_gap(grown)
         print(f"b = {b}: post-peak curves of the grown bands within {100 * record['post_peak_gap'][f'b={b}']:.1f} %")
-    record["load_end"] = os.getloadavg()
-    (HERE / "results" / "band_meshes.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["b", "mesh", "band", "cut cells", "path reaches", "angles [deg]", "F peak [N/m]",
                             "F end [N/m]", "closed form [N/m]", "ratio", "steps", "wall [s]"], rows)
-    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
-    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
     lines += ["", "Post-peak curves of the three grown meshes at equal displacement, largest difference: " +
               ", ".join(f"{k}: {100 * v:.1f} %" for k, v in record["post_peak_gap"].items())]
-    print("\n".join(lines))
-    replace_table("band-meshes-table", lines)
-
+    publish("band_meshes", record, lines)
 
 if __name__ == "__main__":
     main()

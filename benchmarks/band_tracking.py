@@ -13,9 +13,8 @@ the ``band-tracking-table`` markers of README.md.
 
 from __future__ import annotations
 
-import json
-import os
 import math
+import os
 import sys
 import time
 import tomllib
@@ -26,7 +25,7 @@ import numpy as np
 HERE = Path(__file__).parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from run import machine, markdown_table, replace_table  # noqa: E402  (after the sys.path line)
+from run import machine, markdown_table, publish  # noqa: E402  (after the sys.path line)
 
 RULES = {"local": {"tracking": "local"}, "nonlocal (5 mm)": {"tracking": "nonlocal", "tracking_length": 0.005}}
 
@@ -78,16 +77,9 @@ def main() -> None:
                                  "c": c, "tan_phi": tphi, "steps": int(s.result.steps), "wall_s": wall}
         rows.append([name, st.shape[0], end, f"{ang.min():.1f}-{ang.max():.1f}", f"{force:.0f}",
                      f"{ref:.0f}", f"{force / ref:.2f}", s.result.steps, f"{wall:.0f}"])
-    (HERE / "results").mkdir(exist_ok=True)
-    record["load_end"] = os.getloadavg()
-    (HERE / "results" / "band_tracking.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["tracking", "cut cells", "path ends at", "segment angles [deg]", "F end [N/m]",
                             "closed form [N/m]", "ratio", "steps", "wall [s]"], rows)
-    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
-    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
-    print("\n".join(lines))
-    replace_table("band-tracking-table", lines)
-
+    publish("band_tracking", record, lines)
 
 if __name__ == "__main__":
     main()

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import math
+import os
 import re
 import sys
 import time
@@ -29,7 +29,7 @@ import numpy as np
 HERE = Path(__file__).parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
-from run import machine, markdown_table, replace_table  # noqa: E402
+from run import machine, markdown_table, publish  # noqa: E402
 
 
 def main() -> None:
@@ -88,16 +88,10 @@ def main() -> None:
                          switched if switched is not None else "-", f"{wall:.0f}", f"{r.max() / 1e3:.0f}",
                          f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4f}", f"{rec['D_surface_law']:.4f}",
                          ended])
-    record["load_end"] = os.getloadavg()
-    (HERE / "results" / "fragmentation.json").write_text(json.dumps(record, indent=1))
     lines = markdown_table(["form", "nominal steps", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
                             "D (law) [J/m]", "ended"], rows)
-    m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
-    lines += ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, {load[1]:.2f} at the end."]
-    print("\n".join(lines))
-    replace_table("fragmentation-table", lines)
-
+    publish("fragmentation", record, lines)
 
 if __name__ == "__main__":
     main()

@@ -129,7 +129,7 @@ def cut_initial_cracks(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager]
         raise CaseError(f"{path}: [embedded] cracks: no 2D cells may localize (cracks need quad4 or tri3 "
                         "cells of a drucker_prager region of [embedded] regions)")
     for k, crack in enumerate(emb.cracks):
-        n_cut, covered = cut_along(groups[0].paths, np.array(crack.points, dtype=float), crack.c_p)
+        _, covered = cut_along(groups[0].paths, np.array(crack.points, dtype=float), crack.c_p)
         if covered < 1.0 - 1e-6:
             raise CaseError(f"{path}: [embedded] cracks[{k}]: {100 * (1 - covered):.3g} % of its length is not "
                             "across cells that may localize (it leaves the mesh or the drucker_prager regions "

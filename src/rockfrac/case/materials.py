@@ -110,8 +110,8 @@ class EmbeddedSection(_Section):
                                       "drucker_prager region)")
     cracks: list[EmbeddedCrackSection] = Field(default_factory=list, max_length=10_000, description=(
         "cracks present from the start: [[embedded.cracks]] points = [[x, y], ...], c_p = ... (2D)"))
-    max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started (those of cracks included); further cuts "
-                            "continue them from their tips")
+    max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started (those "
+                            "of cracks included); further cuts continue them from their tips")
 
     @model_validator(mode="after")
     def _residual_below_peak(self) -> EmbeddedSection:

@@ -202,13 +202,10 @@ class CohesiveEP(_CohesiveGroup):
         self.up_prev = np.zeros((points.n, 2))  # IMPL-EX: committed plastic jumps one step earlier [m]
         self.step_prev = np.zeros(2)  # IMPL-EX: (control mode, size) of the last committed step
         self._step = np.zeros(2)  # ... and of the step being solved
-        self.explicit_work = 0.0  # IMPL-EX: sum of w (T_ex - T) . d[[u]] over the steps [J] (its error)
-        self._t_ex = np.zeros((points.n, 2))
-        self._u: np.ndarray | None = None  # the step's iterate and start (IMPL-EX's work account)
-        self._u_n: np.ndarray | None = None
+        self._t_ex = np.zeros((points.n, 2))  # IMPL-EX: the explicit tractions of the last evaluation
         self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
 
-    checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "explicit_work", "implex")
+    checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "implex")
 
     @property
     def integration(self) -> str:
@@ -239,11 +236,6 @@ class CohesiveEP(_CohesiveGroup):
         return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 1.0
 
     def commit(self) -> None:
-        if self.integration == "implex":
-            assert self._u is not None and self._u_n is not None  # evaluated before committing
-            d_jump = self.points.local(self.points.jumps(self._u) - self.points.jumps(self._u_n))
-            self.explicit_work += float(np.einsum("pi,pi,p->", self._t_ex - self.trial[:, S_TT:S_TN + 1], d_jump,
-                                                  self.points.weight))
         self.up_prev[:] = self.state[:, S_UPT:S_UPN + 1]  # kept in both modes: a switch has its history
         self.step_prev[:] = self._step
         super().commit()
@@ -264,7 +256,6 @@ class CohesiveEP(_CohesiveGroup):
             assert self.law.kt is not None and self.law.kn is not None
             implex_points(pts.frame, pts.weight, djump, self.state, self.up_prev, self.step_ratio(),
                           float(self.law.kt), float(self.law.kn), self._t_ex, fe, ke)
-            self._u, self._u_n = u, u_n
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)

@@ -54,6 +54,7 @@ class CrackPaths:
         for k, (g, i) in enumerate(zip(groups, ids)):
             self.owner[i, 0], self.owner[i, 1] = k, np.arange(i.size)
             cells.append((i, g.cells))
+        self.centres = [g.x[..., :2].mean(axis=1) for g in groups]  # cell centroids per group [m]
         self.nbr: dict[int, list[tuple[int, int, int]]] = {}
         gids = np.concatenate([i for i, _ in cells])
         conn = np.vstack([c for _, c in cells])
@@ -108,15 +109,14 @@ class CrackPaths:
                         out.add(int(local))
         return out
 
-
     def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
         """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
         stresses with the Gaussian weight exp(-r^2 / (2 length^2)) of their centroids' distance r to
         the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close."""
         x = np.asarray(point, dtype=float)[:2]
         total, weight = np.zeros(6), 0.0
-        for g in self.groups:
-            r2 = ((g.x[..., :2].mean(axis=1) - x) ** 2).sum(axis=1)
+        for g, centre in zip(self.groups, self.centres):
+            r2 = ((centre - x) ** 2).sum(axis=1)
             near = np.flatnonzero((r2 <= 9.0 * length**2) & (g.e_state[:, K.E_LOC] == 0.0))
             w = np.exp(-r2[near] / (2.0 * length**2))
             total += np.einsum("e,eq,eqi->i", w, g.wdet[near], g.sigma[near])

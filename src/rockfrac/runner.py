@@ -237,6 +237,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             log(f"resumed from the checkpoint at step {start.count}")
         for note in built.program.notes + history.notes:
             log(note)
+        for c in case.cohesive_sets:
+            if c.viscosity is not None:
+                log(f"cohesive surfaces ({c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
+                    f"{c.viscosity:g} (pseudo-time, a stage = 1); its extra dissipation is history.csv's D_viscous")
         if on_start is not None:
             on_start()
         warnings = case_warnings(built)
@@ -289,6 +293,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         return RunSummary(result, out, wall, peak, run["iters"], built, warnings,
                           stop_signal=request.reason, exit_code=request.exit_code)
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
+    if history.viscous:
+        total = history.dissipated()
+        log(f"viscous regularisation: D_viscous = {history.viscous_dissipated():.6g} of D_dissipated = {total:.6g} "
+            "(the rest is the traction laws' own)")
     try:
         if case.output.picture:
             from rockfrac.output.crack_map import save_crack_map

@@ -87,7 +87,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
     """
     law = law_of_section(section)
     if section.form is CohesiveForm.ep:
-        return [CohesiveEP(points, law, name=name, integration=section.integration)]
+        return [CohesiveEP(points, law, name=name, integration=section.integration,
+                           viscosity=section.viscosity or 0.0)]
     root = tied_nodes(mesh)
     copies = np.bincount(root, minlength=mesh.n_nodes)
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]

@@ -55,6 +55,11 @@ class CohesiveCommon(_Section):
         "implicit", description="EP only: 'implicit' (the law's return at the end of each step) or 'implex' "
         "(Oliver et al. 2008: equilibrium with the plastic jump extrapolated from the last two steps; one "
         "Newton iteration per step, first order in the step size)")
+    viscosity: float | None = Field(None, gt=0.0, le=1e6, description="EP, implicit only: Duvaut-Lions "
+                                    "relaxation time [pseudo-time of history.csv's 'time': one load-controlled "
+                                    "stage = 1] of a viscous regularisation (Simo & Hughes 1998), for load "
+                                    "steps through snap-backs; its extra dissipation is the column D_viscous "
+                                    "(default: none, the rate-independent law)")
 
     @model_validator(mode="after")
     def _placement(self) -> CohesiveCommon:
@@ -76,6 +81,9 @@ class CohesiveCommon(_Section):
             extra = [k for k in ("augmentation",) if getattr(self, k) is not None]
             if extra:
                 raise ValueError("augmentation only applies to form = 'rp'")
+            if self.viscosity is not None and self.integration != "implicit":
+                raise ValueError("viscosity regularises the implicit update; integration = 'implex' is explicit "
+                                 "already: give one of them")
         else:
             extra = [k for k in ("kn", "kt") if getattr(self, k) is not None]
             if extra:
@@ -83,6 +91,9 @@ class CohesiveCommon(_Section):
             if self.integration != "implicit":
                 raise ValueError("integration = 'implex' only applies to form = 'ep' (it extrapolates the "
                                  "plastic jump behind the penalty)")
+            if self.viscosity is not None:
+                raise ValueError("viscosity only applies to form = 'ep' (it relaxes the penalty's elastic "
+                                 "trial; RP has none)")
         return self
 
 

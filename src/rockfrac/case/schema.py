@@ -122,6 +122,17 @@ class Case(_Section):
                              "and no [embedded] section")
         if self.stages is not None and not self.stages:
             raise ValueError("[[stages]]: give at least one stage")
+        if any(c.viscosity is not None for c in sets):
+            indirect = [f"stage '{s.name or i + 1}' has control = '{s.control}'"
+                        for i, s in enumerate(self.stages or []) if s.control != "load"]
+            if self.loading is not None and self.loading.control is not Control.displacement:
+                indirect.append(f"[loading] has control = '{self.loading.control.value}'")
+            if indirect:
+                raise ValueError("[cohesive] viscosity relaxes over the pseudo-time of load-controlled steps; "
+                                 f"{'; '.join(indirect)} (use control = 'load', or no viscosity)")
+            if self.solver.fallback != "none":
+                raise ValueError("[cohesive] viscosity and [solver] fallback = 'implex' are two regularisations "
+                                 "of the same steps: give one of them")
         names = [s.name for s in self.stages or [] if s.name is not None]
         if len(set(names)) != len(names):
             raise ValueError(f"[[stages]]: stage names must differ (got {names})")

@@ -172,6 +172,11 @@ class ElementGroup(ABC):
         (its share of the dissipation that a surface law defines; 0 for a bulk group)."""
         return 0.0
 
+    def viscous_energy(self) -> float | None:
+        """The part of :meth:`dissipated_energy` that a viscous regularisation added [J] (per unit
+        thickness in 2D); None for a group without one."""
+        return None
+
 
 def restore_arrays(owner: object, saved: dict[str, np.ndarray], names: tuple[str, ...], what: str) -> None:
     """Copy the saved arrays ``names`` into ``owner``'s arrays of the same names, in place; ValueError

@@ -13,6 +13,7 @@ from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
 from rockfrac.laws.implex import implex_points
+from rockfrac.laws.viscous import duvaut_lions_points
 from rockfrac.laws.traction_law import MODE_PLASTIC, S_TN, S_TT, S_UPN, S_UPT, TractionLaw
 
 
@@ -186,17 +187,23 @@ class CohesiveEP(_CohesiveGroup):
     integration = "implicit": the law's return map at the end of the step (backward Euler, the
     paper's); "implex": the same update for the state, but equilibrium with the explicit traction
     of :mod:`rockfrac.laws.implex` (one Newton iteration per step, first order in the step size).
+    viscosity eta > 0 [pseudo-time, one load-controlled stage = 1]: the implicit update regularised
+    by :mod:`rockfrac.laws.viscous` (Duvaut-Lions), its extra dissipation kept in
+    ``viscous_dissipated``.
     """
 
     n_extra = 0
     MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint
 
     def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive",
-                 integration: str = "implicit"):
+                 integration: str = "implicit", viscosity: float = 0.0):
         if law.rigid:
             raise ValueError("an EP cohesive surface needs finite kn and kt")
         if integration not in ("implicit", "implex"):
             raise ValueError(f"integration must be 'implicit' or 'implex', got {integration!r}")
+        if not viscosity >= 0.0 or (viscosity > 0.0 and integration != "implicit"):
+            raise ValueError(f"viscosity must be >= 0 and regularises the implicit update only (got {viscosity!r} "
+                             f"with integration {integration!r})")
         super().__init__(points, law, name=name)
         self.dofs = points.dofs
         self.up_prev = np.zeros((points.n, 2))  # IMPL-EX: committed plastic jumps one step earlier [m]
@@ -204,8 +211,13 @@ class CohesiveEP(_CohesiveGroup):
         self._step = np.zeros(2)  # ... and of the step being solved
         self._t_ex = np.zeros((points.n, 2))  # IMPL-EX: the explicit tractions of the last evaluation
         self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
+        self.viscosity = float(viscosity)
+        self.viscous_dissipated = 0.0  # sum of w (T - T_bar) . d[[u^p]] over the committed steps [J]
+        self._t_bar = np.zeros((points.n, 2))  # viscous: the law's own tractions of the last evaluation
+        self.overstress = np.zeros((points.n, 2))  # viscous: committed T - T_bar [Pa]
 
-    checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "implex")
+    checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "implex", "viscous_dissipated",
+                                                       "overstress")
 
     @property
     def integration(self) -> str:
@@ -221,7 +233,7 @@ class CohesiveEP(_CohesiveGroup):
         return float(gap.max()) / self.law.scale
 
     def switch_to_implex(self) -> bool:
-        if self.implex == 1.0:
+        if self.implex == 1.0 or self.viscosity > 0.0:
             return False
         self.implex = np.array(1.0)
         return True
@@ -235,7 +247,23 @@ class CohesiveEP(_CohesiveGroup):
         (mode, size), (mode_prev, size_prev) = self._step, self.step_prev
         return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 1.0
 
+    def blend(self) -> float:
+        """Viscous regularisation: a = r / (1 + r), r = dt / eta, dt the pseudo-time of the step (its
+        load-factor increment; a step of another control, which the case refuses, has none)."""
+        mode, size = self._step
+        dt = size if mode == self.MODES["load"] else 0.0
+        return dt / (self.viscosity + dt) if dt > 0.0 else 0.0
+
+    def viscous_energy(self) -> float | None:
+        return self.viscous_dissipated if self.viscosity > 0.0 else None
+
     def commit(self) -> None:
+        if self.viscosity > 0.0:
+            d_up = self.trial[:, S_UPT:S_UPN + 1] - self.state[:, S_UPT:S_UPN + 1]
+            over = self.trial[:, S_TT:S_TN + 1] - self._t_bar
+            self.viscous_dissipated += float(np.einsum("pi,pi,p->", 0.5 * (over + self.overstress), d_up,
+                                                       self.points.weight))
+            self.overstress[:] = over
         self.up_prev[:] = self.state[:, S_UPT:S_UPN + 1]  # kept in both modes: a switch has its history
         self.step_prev[:] = self._step
         super().commit()
@@ -250,12 +278,21 @@ class CohesiveEP(_CohesiveGroup):
         n = pts.n
         fe = np.empty((n, 4))
         ke = np.empty((n, 4, 4))
+        committed = self.state
+        if self.viscosity > 0.0:  # an overstressed point returns even at zero jump increment (the laws'
+            committed = self.state.copy()  # shortcut for committed plastic points would keep the overstress)
+            committed[:, self.mode] = 0.0
         self.law.ep_points(pts.frame, pts.weight, djump,
-                           self.state, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
+                           committed, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
         if self.integration == "implex":  # the state as above; equilibrium with the explicit traction
             assert self.law.kt is not None and self.law.kn is not None
             implex_points(pts.frame, pts.weight, djump, self.state, self.up_prev, self.step_ratio(),
                           float(self.law.kt), float(self.law.kn), self._t_ex, fe, ke)
+        elif self.viscosity > 0.0:  # the law's return, relaxed towards the elastic trial (Duvaut-Lions)
+            assert self.law.kt is not None and self.law.kn is not None
+            duvaut_lions_points(pts.frame, pts.weight, djump, self.state, self.trial, self.trial_tangent,
+                                self.blend(), float(self.law.kt), float(self.law.kn), np.int64(self.law.dgamma_slot),
+                                np.int64(self.mode), self._t_bar, fe, ke)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
         return Evaluation(fe, ke, ok=not bad.size, message=msg)

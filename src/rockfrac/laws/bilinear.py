@@ -269,6 +269,7 @@ class Bilinear(TractionLaw):
     Parameters = BilinearParameters
     state_names = ("T_t", "T_n", "jump_p_t", "jump_p_n", "kappa", "dgamma", "mode")
     mode_slot = S_MODE
+    dgamma_slot = S_DGAMMA
     record_names = ("kappa", "strength")
     ep_kernel = ep_points
     rp_kernel = rp_points

@@ -175,6 +175,7 @@ class MohrCoulombSurface(TractionLaw):
     Parameters = MohrCoulombParameters
     state_names = ("T_t", "T_n", "jump_p_t", "jump_p_n", "eps_n_p", "eps_s_p", "dgamma", "mode")
     mode_slot = S_MODE
+    dgamma_slot = S_DGAMMA
     record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
     ep_kernel = ep_points
     rp_kernel = rp_points

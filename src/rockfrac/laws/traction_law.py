@@ -72,6 +72,7 @@ class TractionLaw(ABC):
     Parameters: ClassVar[type[Section]]  # the law's own keys of [cohesive] (pydantic model)
     state_names: ClassVar[tuple[str, ...]]  # the whole state vector, COMMON_STATE first
     mode_slot: ClassVar[int]
+    dgamma_slot: ClassVar[int]  # where the state keeps the last update's plastic multiplier increment
     record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
     ep_kernel: ClassVar[Any]  # the compiled ep_points(..., p, ...) of the module docstring
     rp_kernel: ClassVar[Any]  # the compiled rp_points(..., p, ...)

@@ -13,7 +13,8 @@
   ``D_surface_law``: the dissipation the traction laws count on the crack surfaces (cohesive: each
   law's own work variables, independent of the time integration above; embedded cracks: |S| <T> . dJ
   over the steps, which the element's own dissipation should equal and, with its constant jump and
-  averaged traction, does not: see README);
+  averaged traction, does not: see README); ``D_viscous`` (only with a viscous regularisation,
+  [cohesive] viscosity): the part of D_dissipated the regularisation added, not the law's;
 - the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
 - for the paper's [loading] form, ``u_axial`` (top shortening) and ``F_axial`` (top reaction,
   positive in compression).
@@ -104,9 +105,11 @@ class History:
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
         extra = [m for m in self.means if m not in CRACK]
-        self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["time"] + group_cols
+        self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
+        self.viscous = any(g.viscous_energy() is not None for g in model.groups)
         self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + extra + ["time"]
-                        + group_cols + [c for m in monitors for c in m.columns] + ENERGY)
+                        + group_cols + [c for m in monitors for c in m.columns] + ENERGY
+                        + (["D_viscous"] if self.viscous else []))
         self.e0 = self.elastic_energy(u0)
         self.work = 0.0
         self.u_prev = u0[: self.n_u].copy()
@@ -167,4 +170,10 @@ class History:
         row.update(W_external=self.work, E_elastic=e_el, D_dissipated=dissipated,
                    energy_error=self.work - (e_el - self.e0) - dissipated,
                    D_surface_law=sum(g.surface_energy() for g in self.model.groups) / self.thickness)
+        if self.viscous:
+            row["D_viscous"] = self.viscous_dissipated()
         return row
+
+    def viscous_dissipated(self) -> float:
+        """The dissipation the viscous regularisations added (D_viscous) [J, per unit thickness in 2D]."""
+        return sum(e for g in self.model.groups if (e := g.viscous_energy()) is not None) / self.thickness

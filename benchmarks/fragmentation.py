@@ -1,8 +1,10 @@
 """Fragmentation: a Brazilian disc with cohesive surfaces on every internal edge, EP against RP, two
 step sizes, run until the load falls below half its peak.
 
-One command: ``.venv/bin/python benchmarks/fragmentation.py [--size 0.0009]`` (about 15 minutes on 2
-cores). The disc of examples/rock_tests/brazilian (50 mm, loaded over two 10 deg arcs) meshed at
+One command: ``.venv/bin/python benchmarks/fragmentation.py [--specimen disc|grains] [--size S]``
+(the disc: about 15 minutes on 2 cores). ``--specimen grains``: the grain-matrix specimen of
+:func:`grains_case` in unconfined compression instead (Gmsh quads of 4 mm: about 10,400 internal
+edges), table ``fragmentation-grains``. The disc of examples/rock_tests/brazilian (50 mm, loaded over two 10 deg arcs) meshed at
 ``--size`` (0.9 mm: about 5,100 internal edges), the bilinear law of everywhere.toml on every internal
 edge, path control on the mean opening, at 100 and 200 nominal steps. EP (penalty 1e15 Pa/m) runs
 with ``[solver] fallback = "implex"`` (IMPL-EX once an implicit step fails at min_step), and again
@@ -33,52 +35,97 @@ ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
 from run import machine, markdown_table, publish  # noqa: E402
 
-VISCOSITY = 1e-6  # [cohesive] viscosity of the load-controlled EP runs (pseudo-time; the stage = 1)
+VISCOSITY = {"disc": 1e-6, "grains": 1e-5}  # [cohesive] viscosity of the load-controlled EP runs (stage = 1)
+REACTION = {"disc": "R_load_top_y", "grains": "R_top_y"}
+SIZE = {"disc": 0.0009, "grains": 0.004}
+# the grain-matrix specimen's surfaces: the paper's law (Table 1's form) with friction, weaker and more
+# brittle than the paper's, strongest inside the grains, weakest on their boundaries
+GRAIN_LAW = dict(law="mohr_coulomb", GfI=20.0, GfII=40.0, chi_r=0.0, c_r=0.0, phi_p=0.5236, phi_r=0.3, psi_p=0.05,
+                 alpha_chi=200.0, alpha_c=200.0, alpha_phi=50.0, alpha_psi=50.0)
+
+
+def disc_case(size: float, runs: Path) -> dict:
+    """examples/rock_tests/brazilian/everywhere.toml on a disc meshed at ``size``."""
+    from rockfrac.mesh.rock_tests import disc
+
+    msh = disc(runs / f"disc_{size:g}.msh", diameter=0.05, contact_angle=math.radians(10.0), element_size=size)
+    base = tomllib.loads((ROOT / "examples" / "rock_tests" / "brazilian" / "everywhere.toml").read_text())
+    base["mesh"]["file"] = str(msh)
+    return base
+
+
+def grains_case(size: float, runs: Path) -> dict:
+    """The grains example's specimen (40 grains in a matrix, 40 x 80 mm, quads of ``size``), both
+    materials elastic, EP surfaces on every internal edge: within the grains (3x the matrix's
+    strengths), within the matrix, and between them (0.7x); unconfined compression by 1 mm."""
+    def section(where: str, regions: list[str], scale: float) -> dict:
+        return dict(GRAIN_LAW, form="ep", where=where, regions=regions, chi_p=8000.0 * scale, c_p=6000.0 * scale,
+                    kn=2e12, kt=2e12)
+
+    return {"title": "grain-matrix specimen, cohesive surfaces on every internal edge, compressed",
+            "mesh": {"kind": "grains", "element": "quad4", "width": 0.04, "height": 0.08, "n_grains": 40,
+                     "radius_min": 0.0018, "radius_max": 0.0036, "seed": 0, "element_size": size},
+            "materials": [{"region": "grains", "model": "elastic", "E": 6e7, "nu": 0.2},
+                          {"region": "matrix", "model": "elastic", "E": 1.5e7, "nu": 0.3}],
+            "cohesive": [section("within", ["grains"], 3.0), section("within", ["matrix"], 1.0),
+                         section("between", ["matrix", "grains"], 0.7)],
+            "stages": [{"name": "compress", "steps": 100, "control": "path", "max_steps": 2000,
+                        "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0}, "top": {"y": -1e-3}},
+                        "stop": {"quantity": "R_top_y", "below_peak_fraction": 0.5}}]}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--size", type=float, default=0.0009)
+    ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
+    ap.add_argument("--size", type=float, default=None, help="element size [m] (disc 0.0009, grains 0.004)")
+    ap.add_argument("--variants", nargs="+", default=["ep", "ep viscous", "rp"])
+    ap.add_argument("--steps", type=int, nargs="+", default=[100, 200])
     args = ap.parse_args()
     from rockfrac.case.schema import parse_case
-    from rockfrac.mesh.rock_tests import disc
     from rockfrac.output.csvout import read_csv
     from rockfrac.runner import run_case
 
     runs = HERE / "results" / "runs"
     runs.mkdir(parents=True, exist_ok=True)
-    msh = disc(runs / f"disc_{args.size:g}.msh", diameter=0.05, contact_angle=math.radians(10.0),
-               element_size=args.size)
-    base = tomllib.loads((ROOT / "examples" / "rock_tests" / "brazilian" / "everywhere.toml").read_text())
-    base["mesh"]["file"] = str(msh)
+    size = args.size or SIZE[args.specimen]
+    base = disc_case(size, runs) if args.specimen == "disc" else grains_case(size, runs)
     base["output"] = {"vtk": False, "picture": False, "points": False}
-    record: dict = {"machine": machine(), "load_start": os.getloadavg(), "size": args.size, "runs": {}}
-    rows = []
-    for variant in ("ep", "ep viscous", "rp"):
+    visc, reaction = VISCOSITY[args.specimen], REACTION[args.specimen]
+    name = "fragmentation" if args.specimen == "disc" else "fragmentation_grains"
+    record: dict = {"machine": machine(), "load_start": os.getloadavg(), "specimen": args.specimen, "size": size,
+                    "runs": {}}
+    saved = HERE / "results" / f"{name}.json"
+    if saved.exists():  # a rerun of some variants keeps the others' rows (each run carries its own date/load)
+        old = json.loads(saved.read_text())
+        if old.get("size") == size:
+            record["runs"] = {k: v for k, v in old.get("runs", {}).items() if "variant" in v}
+    for variant in args.variants:
         form = variant.split()[0]
-        for steps in (100, 200):
+        for steps in args.steps:
             d = json.loads(json.dumps(base))
-            coh = d["cohesive"]
-            coh["form"] = form
+            sections = d["cohesive"] if isinstance(d["cohesive"], list) else [d["cohesive"]]
             stage = d["stages"][0]
             stage["steps"] = steps
             stage["max_steps"] = 40 * steps
-            if form == "rp":
-                coh.pop("kn")
-                coh.pop("kt")
-            elif variant == "ep viscous":  # load control; the overstress ~ eta kn dJ/dt stays ~1 % of sigma_c
-                coh["viscosity"] = VISCOSITY
+            for coh in sections:
+                coh["form"] = form
+                if form == "rp":
+                    coh["augmentation"] = coh.pop("kn")
+                    coh.pop("kt")
+                elif variant == "ep viscous":  # load control; the overstress ~ eta kn dJ/dt stays small
+                    coh["viscosity"] = visc
+            if variant == "ep viscous":
                 stage["control"] = "load"
                 stage.pop("max_steps")
-            else:
+            elif form == "ep":
                 d["solver"] = {"fallback": "implex"}
-            out = runs / f"fragment_{variant.replace(' ', '_')}_{steps}"
+            out = runs / f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}"
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=True)
             wall = time.perf_counter() - t0
             h = read_csv(out / "history.csv")
             log = (out / "run.log").read_text()
-            r = np.abs(h["R_load_top_y"])
+            r = np.abs(h[reaction])
             its = h["newton_iterations"]
             switched = None
             if "switch to IMPL-EX" in log:
@@ -88,22 +135,29 @@ def main() -> None:
             ended = ("below half the peak" if "fell below" in s.result.message else
                      f"no convergence at min_step, load factor {lam.group(1)}" if lam else s.result.message[:60])
             viscous = float(h["D_viscous"][-1]) if "D_viscous" in h else 0.0
-            rec = {"points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
+            rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"],
+                   "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended}
             record["runs"][f"{variant} {steps}"] = rec
             print(variant, steps, rec, flush=True)
-            rows.append([variant.upper() if variant != "ep viscous" else f"EP, viscosity {VISCOSITY:g}, load control",
-                         steps, points, rec["steps"], f"{rec['iterations_per_step']:.2f}",
-                         switched if switched is not None else "-", f"{wall:.0f}", f"{r.max() / 1e3:.0f}",
-                         f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4f}", f"{rec['D_surface_law']:.4f}",
-                         f"{viscous:.4f}", ended])
+    order = {"ep": 0, "ep viscous": 1, "rp": 2}
+    rows = []
+    for rec in sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r["nominal_steps"])):
+        v = rec["variant"]
+        rows.append([v.upper() if v != "ep viscous" else f"EP, viscosity {visc:g}, load control",
+                     rec["nominal_steps"], rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
+                     rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}",
+                     f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
+                     f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec["ended"],
+                     f"{rec['date']}, {rec['load_average']:.2f}"])
     lines = markdown_table(["form", "nominal steps", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
-                            "D (law) [J/m]", "D (viscous) [J/m]", "ended"], rows)
-    publish("fragmentation", record, lines)
+                            "D (law) [J/m]", "D (viscous) [J/m]", "ended", "ran (date, load)"], rows)
+    publish(name, record, lines)
+
 
 if __name__ == "__main__":
     main()

@@ -123,3 +123,20 @@ def test_cohesive_surfaces_on_every_edge_separate_with_gc_per_unit_length(tmp_pa
     assert np.abs(p["jump_n"][last & ~horizontal]).max() < 1e-9
     assert h["D_surface_law"][-1] == pytest.approx(gc * width, rel=1e-9)
     assert h["D_dissipated"][-1] == pytest.approx(gc * width, rel=1.5e-2)
+
+
+def test_implex_extrapolates_only_between_steps_of_the_same_control(tmp_path):
+    """r = dt_{n+1} / dt_n between two load steps or two path steps; across a change of control (a
+    load increment against a path increment has no ratio) nothing is extrapolated, r = 0: the first
+    path step after a switch is explicit on the committed state, its error of first order in its
+    size (with r = 1 the last plastic increment was extrapolated whole, whatever the step's size)."""
+    d = paper_ep(40, "implex")
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    s = run_case(parse_case(d), tmp_path)
+    g = next(g for g in s.built.model.groups if g.kind == "cohesive")
+    mode, size = g.step_prev
+    assert mode == g.MODES["load"] and size > 0.0
+    g.set_step("load", 0.5 * size)
+    assert g.step_ratio() == pytest.approx(0.5)
+    g.set_step("path", 0.5 * size)
+    assert g.step_ratio() == 0.0

@@ -26,13 +26,16 @@ def interrupted_then_resumed(case, tmp_path, at: int):
     return run_case(case, tmp_path / "cut", resume=True)
 
 
-@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex"])
+@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous"])
 def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
     if name == "rp_path":
         d = table1.cse_case("rp", axial_steps=120, control="path", axial_displacement=2e-3)
     elif name == "ep_implex":  # the extrapolation's history (last plastic jumps, step size) is kept
         d = table1.cse_case("ep", 1e9, axial_steps=120, axial_displacement=4e-3)
         d["cohesive"]["integration"] = "implex"
+    elif name == "ep_viscous":  # the overstress and D_viscous are kept
+        d = table1.cse_case("ep", 1e9, axial_steps=120, axial_displacement=4e-3)
+        d["cohesive"]["viscosity"] = 1e-3
     else:
         d = table1.ede_case(element="quad4", axial_steps=150)
     d["output"] = {"checkpoint_every": 25, "vtk": True, "vtk_every": 10}

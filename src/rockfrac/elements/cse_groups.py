@@ -243,9 +243,12 @@ class CohesiveEP(_CohesiveGroup):
 
     def step_ratio(self) -> float:
         """dt_{n+1} / dt_n for the extrapolation: the sizes of this step and the last committed one
-        when both are controlled alike, else 1."""
+        when both are controlled alike; else 0, no extrapolation (a load increment against a path
+        increment has no ratio: extrapolating the last plastic jump whole put the first path step
+        after a switch 140 strengths off, whatever its size). The step is then explicit on the
+        committed state, its error of first order in its size, which the step control sees."""
         (mode, size), (mode_prev, size_prev) = self._step, self.step_prev
-        return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 1.0
+        return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 0.0
 
     def blend(self) -> float:
         """Viscous regularisation: a = r / (1 + r), r = dt / eta, dt the pseudo-time of the step (its

@@ -13,8 +13,8 @@ from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
 from rockfrac.laws.implex import implex_points
-from rockfrac.laws.viscous import duvaut_lions_points
 from rockfrac.laws.traction_law import MODE_PLASTIC, S_TN, S_TT, S_UPN, S_UPT, TractionLaw
+from rockfrac.laws.viscous import duvaut_lions_points
 
 
 class _CohesiveGroup(ElementGroup):
@@ -212,7 +212,7 @@ class CohesiveEP(_CohesiveGroup):
         self._t_ex = np.zeros((points.n, 2))  # IMPL-EX: the explicit tractions of the last evaluation
         self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
         self.viscosity = float(viscosity)
-        self.viscous_dissipated = 0.0  # sum of w (T - T_bar) . d[[u^p]] over the committed steps [J]
+        self.viscous_dissipated = 0.0  # sum of w <T - T_bar> . d[[u^p]] over the committed steps [J] (trapezoidal)
         self._t_bar = np.zeros((points.n, 2))  # viscous: the law's own tractions of the last evaluation
         self.overstress = np.zeros((points.n, 2))  # viscous: committed T - T_bar [Pa]
 

@@ -12,8 +12,10 @@ pseudo-time dt (Simo & Hughes 1998, Sect. 2.7), with r = dt / eta and a = r / (1
 local frame (t, n), K = diag(kt, kn) [Pa/m], (T_bar, q_bar, D_bar) the law's own return map from
 the committed state (its implicit EP update). a -> 1 (eta -> 0) is the law itself; a small a keeps a
 step near the elastic trial, so load-controlled steps through a snap-back converge, at the price of
-an extra dissipation that each group reports: per step (T - T_bar) . (u_p - u_p,n) >= 0 per unit
-area, since T - T_bar = K (u_p_bar - u_p,n) / (1 + r) and u_p - u_p,n = a (u_p_bar - u_p,n).
+an extra dissipation that each group reports: the overstress T - T_bar times the plastic jump's
+increment, whose end-of-step value (T - T_bar) . (u_p - u_p,n) >= 0 per unit area, since
+T - T_bar = K (u_p_bar - u_p,n) / (1 + r) and u_p - u_p,n = a (u_p_bar - u_p,n) (the groups
+integrate it by the trapezoidal rule, like their work account).
 """
 
 from __future__ import annotations

@@ -248,7 +248,7 @@ def run_stages(
                     size[mode] *= shrink
                     continue
                 log(f"  {stage.name}: warning: IMPL-EX error {implex:.3g} > {stepping.implex_tol:g} in a step "
-                    "at min_step; the step is kept with that error (it does not shrink with the step here)")
+                    "at min_step; the step is kept with that error (a shorter one would be below min_step)")
             crossing = model.event()
             if crossing is not None and crossing[0] > stepping.event_tol and crossing[1] < -stepping.event_tol:
                 before, after = crossing  # end the step at the event: secant on the step size

@@ -75,11 +75,11 @@ def test_every_example_case_runs_small(tmp_path, path):
 @pytest.mark.parametrize("script", sorted(EXAMPLES.rglob("mesh.py")), ids=lambda p: p.parent.name)
 def test_every_mesh_script_writes_a_mesh(tmp_path, script):
     out = tmp_path / "m.msh"
-    size = {"brazilian": "0.01", "borehole": "0.02", "bending": "0.01"}[script.parent.name]
+    size = {"brazilian": "0.01", "borehole": "0.02", "bending": "0.01", "triaxial": "0.02"}[script.parent.name]
     subprocess.run([sys.executable, str(script), "--size", size, "--out", str(out)], check=True,
                    capture_output=True, timeout=300)
     mesh = read_mesh(out, dim=None)
-    assert mesh.cells.shape[0] > 10 and mesh.cell_type == "quad4"
+    assert mesh.cells.shape[0] > 10 and mesh.cell_type == ("tet4" if script.parent.name == "triaxial" else "quad4")
 
 
 def readme_snippets() -> list[str]:

@@ -14,7 +14,7 @@ The flat API (loaded on first use, so ``import rockfrac`` stays cheap)::
 - :func:`make_case`, :func:`load`, :func:`run`, :class:`Result`, :class:`Snapshot` (rockfrac.api);
 - :class:`Case` and the section classes (rockfrac.case.schema), :class:`CaseError`;
 - :func:`read_mesh` (Gmsh .msh), :class:`Mesh`, the rock-test meshes :func:`disc`,
-  :func:`plate_with_hole`, :func:`notched_beam` (rockfrac.mesh.rock_tests);
+  :func:`plate_with_hole`, :func:`notched_beam`, :func:`box`, :func:`cylinder` (rockfrac.mesh.rock_tests);
 - :data:`LAWS`, the traction laws by name (rockfrac.laws.registry), and :func:`law`, one with
   its parameters (its ``drive(jumps)`` runs the material-point driver);
 - :func:`localization`: the loss of ellipticity of Drucker-Prager at a stress (paper eq. 7-8).
@@ -51,6 +51,8 @@ _EXPORTS = {
     "disc": ("rockfrac.mesh.rock_tests", "disc"),
     "plate_with_hole": ("rockfrac.mesh.rock_tests", "plate_with_hole"),
     "notched_beam": ("rockfrac.mesh.rock_tests", "notched_beam"),
+    "box": ("rockfrac.mesh.rock_tests", "box"),
+    "cylinder": ("rockfrac.mesh.rock_tests", "cylinder"),
     "LAWS": ("rockfrac.laws.registry", "LAWS"),
     "law": ("rockfrac.api_laws", "law"),
     "localization": ("rockfrac.api_laws", "localization"),

@@ -132,6 +132,8 @@ def build(case: Case, path: str = "<case>") -> Built:
     mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     try:
         bulks = make_bulk_groups(case, mesh, path)
+    except CaseError:
+        raise
     except ValueError as err:
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives: list = []

@@ -8,6 +8,7 @@ from rockfrac.case.build_mesh import mean_cell_size
 from rockfrac.case.build_program import require
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
+from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
@@ -98,6 +99,10 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
+    if emb is not None and mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen:
+        raise CaseError(f"{path}: [embedded]: the mesh is a general 3D body ({mesh.cell_type} cells); embedded "
+                        "cracks are available in 2D meshes and in the plane-strain hex8 specimen ([mesh] kind = "
+                        "'specimen', element = 'hex8'): remove [embedded] or use one of those")
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)

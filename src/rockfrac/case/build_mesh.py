@@ -77,6 +77,10 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
         return mesh, []
     if sets[0].where is Placement.crack:  # the specimen carries its crack already
         return mesh, [np.arange(mesh.interfaces.shape[0])]
+    if mesh.dim != 2:
+        raise CaseError(f"{path}: [cohesive]: the mesh is 3D ({mesh.cell_type} cells) and rockfrac's cohesive "
+                        "surfaces are 2D (zero-thickness interfaces between edges): remove [cohesive] or "
+                        "use a 2D mesh (tri3 or quad4)")
     from rockfrac.mesh import interfaces as itf
 
     edges, cells, _ = itf.internal_edges(mesh)

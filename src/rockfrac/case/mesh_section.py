@@ -42,7 +42,8 @@ class MeshSection(_Section):
     specimen: a W x H plane-strain block (PAPER_NOTES, Sect. 7); element = "quad4": two blocks of
     nx x ny quads cut by a crack through the centre at crack_angle (or one block, crack = false);
     "hex8": nx x ny x nz hexahedra of thickness T, both out-of-plane faces held, no crack.
-    gmsh: a .msh file (2D tri3 or quad4, or hex8); physical groups name regions and boundaries.
+    gmsh: a .msh file (2D: tri3 or quad4; 3D, in general 3D: tet4 or hex8); physical groups name
+    regions and boundaries (in 3D, physical surfaces the faces loads act on).
     grains: n_grains circular stiff grains in a matrix (regions "grains", "matrix"), made by Gmsh.
     block: a W x H nx x ny grid, with an optional weak inclusion box (regions "weak", "bulk").
     Every kind provides the boundary groups bottom, top, left, right and bottom_left.

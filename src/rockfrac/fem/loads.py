@@ -2,9 +2,10 @@
 tractions of a stress field on a boundary. Forces per unit thickness in 2D [N/m], N in 3D.
 
 Edges (k, 2) run counter-clockwise around the body, so the outward normal of edge a -> b is
-(dy, -dx)/L; faces (k, 4) are bilinear quadrilaterals with the outward right-hand normal
-(x1 - x0) x (x3 - x0). Every integral is exact for the linear (2D) and bilinear (3D) geometry
-with tractions varying linearly along the side (two Gauss points per direction).
+(dy, -dx)/L; faces are bilinear quadrilaterals (k, 4) with the outward right-hand normal
+(x1 - x0) x (x3 - x0), or linear triangles (k, 3) with normal (x1 - x0) x (x2 - x0). Every
+integral is exact for the linear (2D), bilinear and triangular (3D) geometry with tractions
+varying linearly along the side (two Gauss points per direction; three points on a triangle).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from rockfrac.fem.reference import QUAD4, ReferenceElement
+from rockfrac.fem.reference import QUAD4, TRI3, TRIANGLE_RULE, ReferenceElement
 
 _G = 1.0 / np.sqrt(3.0)
 LINE_POINTS = np.array([0.5 * (1.0 - _G), 0.5 * (1.0 + _G)])  # Gauss points on [0, 1], weights 1/2
@@ -77,13 +78,21 @@ def edge_stress_traction(nodes: np.ndarray, edges: np.ndarray, stress: StressFie
 
 
 def _face_geometry(nodes: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Shape values (4 qp, 4), points (k, 4 qp, 3) and n dA (k, 4 qp, 3) of bilinear faces."""
+    """Shape values (qp, m), points (k, qp, 3) and n dA times the Gauss weight (k, qp, 3) of
+    bilinear (m = 4, 2 x 2 points of weight 1) or triangular (m = 3, three points) faces."""
     x = nodes[faces]
-    shape = QUAD4.shape(QUAD4.points)
-    dn = QUAD4.shape_gradients(QUAD4.points)
+    if faces.shape[1] == 3:
+        pts, w = TRIANGLE_RULE
+        shape, dn = TRI3.shape(pts), TRI3.shape_gradients(pts)
+    else:
+        pts, w = QUAD4.points, QUAD4.weights
+        shape, dn = QUAD4.shape(pts), QUAD4.shape_gradients(pts)
     xi = np.einsum("qa,kai->kqi", dn[:, :, 0], x)
     eta = np.einsum("qa,kai->kqi", dn[:, :, 1], x)
-    return shape, np.einsum("qa,kai->kqi", shape, x), np.cross(xi, eta)
+    nda = np.cross(xi, eta)
+    if faces.shape[1] == 3:
+        nda = nda * w[None, :, None]
+    return shape, np.einsum("qa,kai->kqi", shape, x), nda
 
 
 def face_pressure(nodes: np.ndarray, faces: np.ndarray, pressure: float, f: np.ndarray) -> None:
@@ -92,7 +101,7 @@ def face_pressure(nodes: np.ndarray, faces: np.ndarray, pressure: float, f: np.n
     if faces.size == 0:
         return
     shape, _, nda = _face_geometry(nodes, faces)
-    forces = -pressure * np.einsum("qa,kqi->kai", shape, nda)  # Gauss weights are 1
+    forces = -pressure * np.einsum("qa,kqi->kai", shape, nda)  # nda carries the Gauss weights
     for i in range(3):
         np.add.at(f, 3 * faces + i, forces[:, :, i])
 
@@ -102,7 +111,7 @@ def face_traction(nodes: np.ndarray, faces: np.ndarray, traction: np.ndarray, f:
     if faces.size == 0:
         return
     shape, _, nda = _face_geometry(nodes, faces)
-    area = np.linalg.norm(nda, axis=2)  # (k, qp): dA / (dxi deta), Gauss weights 1
+    area = np.linalg.norm(nda, axis=2)  # (k, qp): dA times the Gauss weight
     forces = np.einsum("qa,kq,i->kai", shape, area, np.asarray(traction, dtype=float))
     _scatter(f, faces, forces, 3)
 
@@ -114,8 +123,9 @@ def face_stress_traction(nodes: np.ndarray, faces: np.ndarray, stress: StressFie
         return
     shape, x, nda = _face_geometry(nodes, faces)
     k = faces.shape[0]
-    sig = stress(x.reshape(-1, 3)).reshape(k, 4, 6)
-    full = sig[..., [0, 3, 5, 3, 1, 4, 5, 4, 2]].reshape(k, 4, 3, 3)
+    nq = shape.shape[0]
+    sig = stress(x.reshape(-1, 3)).reshape(k, nq, 6)
+    full = sig[..., [0, 3, 5, 3, 1, 4, 5, 4, 2]].reshape(k, nq, 3, 3)
     t = np.einsum("kqij,kqj->kqi", full, nda)
     scale = np.broadcast_to(np.asarray(factor, dtype=float), (k,))
     _scatter(f, faces, np.einsum("qa,kqi,k->kai", shape, t, scale), 3)

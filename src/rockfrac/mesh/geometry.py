@@ -9,6 +9,7 @@ import numpy as np
 CELL_TYPES: dict[str, tuple[int, np.ndarray]] = {
     "tri3": (2, np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])),
     "quad4": (2, np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])),
+    "tet4": (3, np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])),
     "hex8": (3, np.array([[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [1.0, 1.0, -1.0], [-1.0, 1.0, -1.0],
                           [-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [1.0, 1.0, 1.0], [-1.0, 1.0, 1.0]])),
 }
@@ -36,6 +37,10 @@ def corner_jacobians(nodes: np.ndarray, cells: np.ndarray, cell_type: str) -> np
         e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
         det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
         return np.repeat(det[:, None], 3, axis=1)
+    if cell_type == "tet4":
+        e = x[:, 1:] - x[:, :1]  # (n, 3 edges, 3)
+        det = np.einsum("ki,ki->k", np.cross(e[:, 0], e[:, 1]), e[:, 2])
+        return np.repeat(det[:, None], 4, axis=1)
     nb = _corner_neighbours(corners)
     out = np.empty(cells.shape)
     for a in range(corners.shape[0]):

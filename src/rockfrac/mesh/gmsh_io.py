@@ -4,7 +4,8 @@ What :func:`read_mesh` makes of a file:
 
 - Cells: every element of dimension ``dim`` (2, 3, or None: the file's highest; elements of a
   higher dimension are an error); they must be of one supported type (2D: tri3 from Gmsh
-  "Triangle 3" or quad4 from "Quadrilateral 4"; 3D: hex8 from "Hexahedron 8"). Nodes on no
+  "Triangle 3" or quad4 from "Quadrilateral 4"; 3D: tet4 from "Tetrahedron 4" or hex8 from
+  "Hexahedron 8"). Nodes on no
   cell (geometry points, ...) are dropped and the rest renumbered compactly, in Gmsh's order.
   2D meshes must lie in a plane z = const; z is dropped.
 - Orientation: the Jacobian is evaluated at every corner of every cell. A cell with all corner
@@ -24,8 +25,8 @@ What :func:`read_mesh` makes of a file:
   inside the body (an internal curve, e.g. a grain boundary or a future crack) keeps Gmsh's
   orientation: **pressure loads only make sense on boundary edges** -- check with
   :func:`on_boundary`; :func:`boundary_edges` lists all of them.
-- face_sets (3D): one per physical surface, its quadrilaterals, oriented outward (right-hand
-  normal (x1 - x0) x (x3 - x0)) by the adjacent hexahedron where on the boundary.
+- face_sets (3D): one per physical surface, its quadrilaterals (hex8) or triangles (tet4), oriented
+  outward (right-hand normal) by the adjacent cell where on the boundary.
 - Unnamed physical groups are named by their number, e.g. "3".
 
 Every problem raises :class:`rockfrac.case.schema.CaseError` naming the file, what is wrong and
@@ -58,7 +59,6 @@ from rockfrac.files import check_file
 from rockfrac.mesh.geometry import corner_jacobians
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import (  # noqa: F401 (boundary_edges, boundary_faces, on_boundary: re-exported)
-    HEX_FACES,
     boundary_edges,
     boundary_faces,
     cell_sides,
@@ -72,11 +72,12 @@ __all__ = ["boundary_edges", "boundary_faces", "gmsh_session", "mesh_from_model"
 
 log = logging.getLogger(__name__)
 
-CELL_TYPES = {"Triangle 3": "tri3", "Quadrilateral 4": "quad4", "Hexahedron 8": "hex8"}
-ALLOWED = {2: ("tri3", "quad4"), 3: ("hex8",)}
+CELL_TYPES = {"Triangle 3": "tri3", "Quadrilateral 4": "quad4", "Tetrahedron 4": "tet4", "Hexahedron 8": "hex8"}
+ALLOWED = {2: ("tri3", "quad4"), 3: ("tet4", "hex8")}
+SIDE = {"tri3": "Line 2", "quad4": "Line 2", "tet4": "Triangle 3", "hex8": "Quadrilateral 4"}  # Gmsh's side type
 GMSH_NAME = {v: k for k, v in CELL_TYPES.items()}
 # each cell type reversed: the mirror image of the same cell
-REVERSED = {"tri3": [0, 2, 1], "quad4": [0, 3, 2, 1], "hex8": [0, 3, 2, 1, 4, 7, 6, 5]}
+REVERSED = {"tri3": [0, 2, 1], "quad4": [0, 3, 2, 1], "tet4": [0, 2, 1, 3], "hex8": [0, 3, 2, 1, 4, 7, 6, 5]}
 DIM_WORD = {0: "point", 1: "curve", 2: "surface", 3: "volume"}
 GroupKind = Literal["node_sets", "edge_sets", "face_sets", "regions"]
 
@@ -212,7 +213,7 @@ def _to_mesh(raw: _Raw, dim: int | None, source: str) -> Mesh:
     cells = cells.reshape(cell_nodes.shape)
     nodes = _coordinates(raw, used, dim, source)
     cells = _orient(nodes, cells, cell_type, tags, source)
-    node_sets, sides = _lower_groups(raw, dim, used, source)
+    node_sets, sides = _lower_groups(raw, dim, used, SIDE[cell_type], source)
     mesh = Mesh(nodes=nodes, cells=cells, cell_type=cell_type, node_sets=node_sets, regions=regions)
     all_sides = cell_sides(cells, dim)
     for name, group in sides.items():
@@ -320,9 +321,10 @@ def _orient(nodes: np.ndarray, cells: np.ndarray, cell_type: str, tags: np.ndarr
     return cells
 
 
-def _lower_groups(raw: _Raw, dim: int, used: np.ndarray, source: str) -> tuple[dict, dict]:
-    """Node sets of the lower-dimensional groups, and the (k, 2) edges / (k, 4) faces of the
-    groups one dimension down, in compact node numbers (Gmsh's orientation)."""
+def _lower_groups(raw: _Raw, dim: int, used: np.ndarray, side: str, source: str) -> tuple[dict, dict]:
+    """Node sets of the lower-dimensional groups, and the (k, 2) edges / (k, 4) or (k, 3) faces
+    (Gmsh element type ``side``) of the groups one dimension down, in compact node numbers (Gmsh's
+    orientation)."""
     node_sets: dict[str, np.ndarray] = {}
     sides: dict[str, np.ndarray] = {}
     for g in raw.groups:
@@ -343,12 +345,11 @@ def _lower_groups(raw: _Raw, dim: int, used: np.ndarray, source: str) -> tuple[d
                 "Mesh.SaveAll = 1)")
         node_sets[g.name] = np.union1d(node_sets.get(g.name, np.zeros(0, np.int64)), pos)
         if g.dim == dim - 1:
-            side = "Line 2" if dim == 2 else "Quadrilateral 4"
             wrong = [b for b in blocks if b.name != side]
             if wrong:
                 raise CaseError(f"{source}: physical {word} {g.name!r} holds {_summary(wrong)}; "
                                 f"its elements must be '{side}' (sides of the {dim}D cells)")
-            k = pos.reshape(-1, 2 if dim == 2 else 4)
+            k = pos.reshape(-1, {"Line 2": 2, "Triangle 3": 3, "Quadrilateral 4": 4}[side])
             k = np.vstack([sides[g.name], k]) if g.name in sides else k
             sides[g.name] = k[np.sort(np.unique(same_nodes(k), return_index=True)[1])]  # MSH 2
     return node_sets, sides

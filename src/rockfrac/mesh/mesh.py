@@ -14,15 +14,16 @@ class Mesh:
     """A 2D or 3D mesh; nothing here assumes structure.
 
     nodes: (n_nodes, dim) coordinates [m].
-    cells: (n_cells, n) node indices of the bulk cells, of type ``cell_type`` ("quad4" counter-
-        clockwise, or "hex8" in VTK order: bottom face counter-clockwise seen from above, then top).
+    cells: (n_cells, n) node indices of the bulk cells, of type ``cell_type`` ("tri3" or "quad4"
+        counter-clockwise, "tet4" right-handed, or "hex8" in VTK order: bottom face counter-clockwise
+        seen from above, then top).
     interfaces: (n_if, 4) zero-thickness 2D interface cells, ordered (m0, m1, p0, p1): minus-side
         nodes m0 -> m1 along the tangent t, and the plus-side nodes p0, p1 facing them. The normal
         n points from the minus to the plus side with (t, n) right-handed.
     node_sets: named node index arrays (Dirichlet conditions, reactions).
     edge_sets: named (k, 2) node-pair arrays of 2D boundary edges, counter-clockwise (pressure loads).
-    face_sets: named (k, 4) node arrays of 3D boundary quadrilaterals, outward normal by the
-        right-hand rule (pressure loads).
+    face_sets: named (k, 4) node arrays of 3D boundary quadrilaterals (hex8 meshes) or (k, 3)
+        triangles (tet4 meshes), outward normal by the right-hand rule (pressure loads).
     regions: named cell index arrays (materials); by default one region "bulk" with every cell.
     """
 

@@ -7,9 +7,11 @@ as .msh files a case reads with ``[mesh] kind = "gmsh"``.
   ``left`` (x = 0) and ``bottom`` (y = 0), the hole ``hole``, an optional ring region ``near``;
 - :func:`notched_beam`: a beam with a central bottom notch for three-point bending, the ligament
   above the notch as an internal curve ``ligament``, point groups at the supports and the load;
-- :func:`box`: a structured hexahedral box with its six faces named (3D loads).
+- :func:`box`: a structured box of hexahedra (or tetrahedra) with its six faces named (3D loads);
+- :func:`cylinder`: the triaxial specimen, tetrahedra, faces ``top``, ``bottom``, ``side``, points
+  ``centre_bottom`` and ``rim_bottom`` to hold it still, optionally cut by an inclined ``joint``.
 
-Each takes an element size and the element type ("quad4": all quadrilaterals by Gmsh's
+Each 2D one takes an element size and the element type ("quad4": all quadrilaterals by Gmsh's
 recombination and subdivision, or "tri3"), and names every group the examples use.
 """
 
@@ -182,11 +184,14 @@ def notched_beam(path: str | Path, length: float = 0.2, height: float = 0.05, sp
 
 
 def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
-        divisions: tuple[int, int, int] = (2, 2, 2)) -> Path:
-    """A structured hexahedral box [0, lx] x [0, ly] x [0, lz] [m] (region rock), ``divisions``
-    cells along x, y, z; faces left/right (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz)."""
+        divisions: tuple[int, int, int] = (2, 2, 2), element: str = "hex8") -> Path:
+    """A structured box [0, lx] x [0, ly] x [0, lz] [m] (region rock), ``divisions`` cells along x,
+    y, z (element "hex8"; "tet4": each hexahedron split into tetrahedra by Gmsh); faces left/right
+    (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz)."""
     import gmsh
 
+    if element not in ("hex8", "tet4"):
+        raise ValueError(f"element must be 'hex8' or 'tet4', got {element!r}")
     lx, ly, lz = size
     with gmsh_session("rockfrac_box"):
         gmsh.model.occ.addBox(0, 0, 0, lx, ly, lz)
@@ -197,7 +202,8 @@ def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
             gmsh.model.mesh.setTransfiniteCurve(c, divisions[axis] + 1)
         for _, s in gmsh.model.getEntities(2):
             gmsh.model.mesh.setTransfiniteSurface(s)
-            gmsh.model.mesh.setRecombine(2, s)
+            if element == "hex8":
+                gmsh.model.mesh.setRecombine(2, s)
         gmsh.model.mesh.setTransfiniteVolume(1)
         gmsh.model.addPhysicalGroup(3, [1], name="rock")
         e = 1e-6 * max(size)
@@ -210,6 +216,69 @@ def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
             gmsh.model.addPhysicalGroup(2, faces, name=name)
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        gmsh.model.mesh.generate(3)
+        gmsh.write(str(path))
+    return path
+
+
+def cylinder(path: str | Path, diameter: float = 0.05, height: float = 0.1, element_size: float | None = None,
+             joint_dip: float | None = None) -> Path:
+    """The triaxial specimen: a cylinder of ``diameter`` and ``height`` [m] along z, base at z = 0,
+    axis through the origin, tetrahedra of ``element_size`` (default diameter / 8). Region rock;
+    faces top, bottom, side; points centre_bottom (0, 0, 0) and rim_bottom (r, 0, 0).
+
+    Intact, the cylinder is a triangulated disc extruded in layers (each prism split into three
+    tetrahedra), so its faceted side is a vertical prism and a uniform lateral pressure with a
+    uniform axial stress is an exact, homogeneous solution. With ``joint_dip`` [rad] it is cut by a
+    plane through its centre, dipping at that angle from the horizontal towards +x (the face
+    ``joint``, internal; the cells on both sides conform), meshed unstructured."""
+    import gmsh
+
+    r = 0.5 * diameter
+    h = element_size or diameter / 8
+    if joint_dip is not None and not 0.0 <= joint_dip < math.atan2(height, diameter):
+        raise ValueError(f"joint_dip must be in [0, atan(H / D)) = [0, {math.atan2(height, diameter):.4g}) rad "
+                         f"so that the joint plane cuts the side only, got {joint_dip!r}")
+    with gmsh_session("rockfrac_cylinder"):
+        occ = gmsh.model.occ
+        if joint_dip is None:  # a triangulated disc extruded in layers: every side facet vertical
+            disk = occ.addDisk(0, 0, 0, r, r)
+            occ.fragment([(2, disk)], [(0, occ.addPoint(0, 0, 0)), (0, occ.addPoint(r, 0, 0))])
+            layers = max(1, round(height / h))
+            occ.extrude(occ.getEntities(2), 0, 0, height, numElements=[layers], recombine=False)
+        else:
+            body = [(3, occ.addCylinder(0, 0, 0, 0, 0, height, r))]
+            plane = occ.addDisk(0, 0, 0, 2 * diameter, 2 * diameter)
+            occ.rotate([(2, plane)], 0, 0, 0, 0, 1, 0, joint_dip)  # about +y: z = -x tan(dip), down towards +x
+            occ.translate([(2, plane)], 0, 0, 0.5 * height)
+            occ.fragment(body, [(0, occ.addPoint(0, 0, 0)), (0, occ.addPoint(r, 0, 0)), (2, plane)])
+        occ.synchronize()
+        e = 1e-6 * max(diameter, height)
+        inside = gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, -e, r + e, r + e, height + e, dim=2)
+        outside = [t for _, t in gmsh.model.getEntities(2) if (2, t) not in inside]
+        if outside:  # the cutting disk beyond the cylinder
+            gmsh.model.removeEntities([(2, t) for t in outside], recursive=True)
+        volumes = [t for _, t in gmsh.model.getEntities(3)]
+        gmsh.model.addPhysicalGroup(3, volumes, name="rock")
+        top = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, height - e, r + e, r + e,
+                                                                  height + e, dim=2)]
+        bottom = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, -e, r + e, r + e, e, dim=2)]
+        faces = [abs(t) for v in volumes for _, t in gmsh.model.getBoundary([(3, v)], oriented=False)]
+        internal = sorted({t for t in faces if faces.count(t) > 1})  # between two volumes
+        side = sorted(set(faces) - set(internal) - set(top) - set(bottom))
+        gmsh.model.addPhysicalGroup(2, top, name="top")
+        gmsh.model.addPhysicalGroup(2, bottom, name="bottom")
+        gmsh.model.addPhysicalGroup(2, side, name="side")
+        if joint_dip is not None:
+            gmsh.model.addPhysicalGroup(2, internal, name="joint")
+        for name, x in (("centre_bottom", 0.0), ("rim_bottom", r)):
+            pts = gmsh.model.getEntitiesInBoundingBox(x - e, -e, -e, x + e, e, e, dim=0)
+            gmsh.model.addPhysicalGroup(0, [t for _, t in pts], name=name)
+        for key, value in {"General.NumThreads": 1, "Mesh.MeshSizeMax": h, "Mesh.MeshSizeMin": 0.0,
+                           "Mesh.Algorithm3D": 1, "Mesh.MshFileVersion": 4.1}.items():
+            gmsh.option.setNumber(key, value)
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         gmsh.model.mesh.generate(3)

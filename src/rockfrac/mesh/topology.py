@@ -6,17 +6,21 @@ import numpy as np
 
 from rockfrac.mesh.mesh import Mesh
 
-# hexahedron faces (VTK order), each with its right-hand normal pointing out of the cell
+# hexahedron and tetrahedron faces (VTK order), each with its right-hand normal out of the cell
 HEX_FACES = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4],
                       [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
+TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+CELL_FACES = {8: HEX_FACES, 4: TET_FACES}  # by the number of nodes of a 3D cell
 
 
 def cell_sides(cells: np.ndarray, dim: int) -> np.ndarray:
     """Every side of every cell, oriented with the cell on its left (2D: (n_cells * n, 2) edges of
-    counter-clockwise cells) or outward (3D: (n_cells * 6, 4) hexahedron faces)."""
+    counter-clockwise cells) or outward (3D: (n_cells * 6, 4) hexahedron faces, (n_cells * 4, 3)
+    tetrahedron faces)."""
     if dim == 2:
         return np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2)
-    return cells[:, HEX_FACES].reshape(-1, 4)
+    faces = CELL_FACES[cells.shape[1]]
+    return cells[:, faces].reshape(-1, faces.shape[1])
 
 
 def same_nodes(rows: np.ndarray) -> np.ndarray:
@@ -65,9 +69,10 @@ def boundary_edges(mesh: Mesh) -> np.ndarray:
 
 
 def boundary_faces(mesh: Mesh) -> np.ndarray:
-    """The (k, 4) boundary faces of a hex8 mesh, right-hand normal pointing out of the body."""
-    if mesh.cell_type != "hex8":
-        raise ValueError(f"boundary_faces is for hex8 meshes; this one is {mesh.cell_type}")
+    """The boundary faces of a 3D mesh, (k, 4) quadrilaterals of hex8 or (k, 3) triangles of tet4
+    cells, right-hand normal pointing out of the body."""
+    if mesh.dim != 3:
+        raise ValueError(f"boundary_faces is for 3D meshes; this one is {mesh.dim}D (see boundary_edges)")
     return _boundary(cell_sides(mesh.cells, 3))
 
 
@@ -77,7 +82,7 @@ def _boundary(sides: np.ndarray) -> np.ndarray:
 
 
 def on_boundary(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
-    """Boolean mask: which (k, 2) edges (2D) or (k, 4) faces (3D) lie on the body's boundary."""
+    """Boolean mask: which (k, 2) edges (2D) or (k, 4) / (k, 3) faces (3D) lie on the body's boundary."""
     sides = np.asarray(sides, dtype=np.int64)
     if sides.size == 0:
         return np.zeros(len(sides), bool)

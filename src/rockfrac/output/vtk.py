@@ -3,7 +3,7 @@
 Plain arrays in, files out; nothing here knows the engine. A step is one unstructured grid that
 holds three kinds of cells (the cell field ``cell_kind`` tells them apart, see `CellKind`):
 
-- bulk cells: "triangle", "quad" or "hexahedron" (rockfrac's tri3, quad4, hex8; VTK node order);
+- bulk cells: "triangle", "quad", "tetra" or "hexahedron" (rockfrac's tri3, quad4, tet4, hex8; VTK order);
 - cohesive interfaces (m0, m1, p0, p1) as "quad" cells (m0, m1, p1, p0). They have zero area in
   the reference configuration and open with ParaView's "Warp By Vector": the minus nodes move
   with the minus side and the plus nodes with the plus side. Opened, the quad is counter-
@@ -53,7 +53,7 @@ import meshio
 import numpy as np
 
 #: rockfrac cell type -> meshio (VTK) cell type; node orders are the same.
-MESHIO_TYPES = {"tri3": "triangle", "quad4": "quad", "hex8": "hexahedron"}
+MESHIO_TYPES = {"tri3": "triangle", "quad4": "quad", "tet4": "tetra", "hex8": "hexahedron"}
 
 
 class CellKind(enum.IntEnum):

@@ -189,9 +189,18 @@ def test_triaxial_drucker_prager_cylinder_meets_its_closed_forms(triaxial):
     assert h["newton_iterations"][-1] <= 3
 
 
+BILINEAR = {"form": "ep", "kn": 1e13, "kt": 1e13, "law": "bilinear", "sigma_c": 1e6, "Gc": 50.0, "beta": 1.0}
+
+
 @pytest.mark.parametrize("section,key", [
-    ({"cohesive": {"where": "all", "form": "ep", "kn": 1e13, "kt": 1e13, "law": "bilinear", "sigma_c": 1e6,
-                   "Gc": 50.0, "beta": 1.0}}, r"\[cohesive\]: the mesh is 3D \(tet4 cells\)"),
+    ({"cohesive": {"where": "all", "integration": "implex", **BILINEAR}},
+     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
+    ({"cohesive": {"where": "all", "viscosity": 1e-3, **BILINEAR}},
+     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
+    ({"cohesive": {"where": "all", **BILINEAR}, "solver": {"fallback": "implex"}},
+     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
+    ({"cohesive": {"where": "curves", "curves": ["side"], **BILINEAR}},
+     r"\[cohesive\] where = 'curves' is for 2D meshes; this one is 3D"),
     ({"embedded": {"c_p": 1e6, "c_r": 0.0, "phi_p": 0.5, "phi_r": 0.0, "psi_p": 0.1, "alpha_c": 500.0,
                    "alpha_phi": 500.0, "alpha_psi": 500.0}}, r"\[embedded\]: the mesh is a general 3D body"),
 ])
@@ -222,3 +231,61 @@ def test_tetrahedra_are_written_for_paraview(cylinder, tmp_path):
     assert [c.type for c in back.cells] == ["tetra"]
     np.testing.assert_array_equal(back.cells[0].data, m.cells)
     np.testing.assert_allclose(back.point_data["displacement"], u)
+
+
+@pytest.fixture(scope="module")
+def jointed(tmp_path_factory):
+    case = load_case(TRIAXIAL / "joint.toml")
+    out = tmp_path_factory.mktemp("joint")
+    return case, run(case, out), out
+
+
+def test_triaxial_joint_slips_at_the_closed_form_and_slides_down_the_dip(jointed):
+    """examples/rock_tests/triaxial/joint.toml: homogeneous stress, so the joint (dip 55 deg) carries
+    sigma . n at every point; it activates, and then slides at every step, where the law's yield
+    function F(T) = 0 with T from the axial stress (with the points' current strengths)."""
+    from scipy.optimize import brentq
+
+    from rockfrac.output.csvout import read_csv
+
+    case, r, out = jointed
+    h, mesh = r.history, r.built.mesh
+    p = 5e6
+    dip = math.radians(55.0)
+    s, c = math.sin(dip), math.cos(dip)
+    area = np.linalg.norm(face_normals(mesh.nodes, mesh.face_sets["bottom"]), axis=1).sum()
+    sigma_a = np.asarray(h["R_bottom_z"]) / area
+    pts = read_csv(out / "points.csv")
+    steps = np.asarray(pts["step"])
+    n_pts = int(np.sum(steps == 1))
+    assert n_pts > 40
+
+    def axial_at_yield(chi, coh, tphi):
+        def f(sa):
+            tau, tn = (sa - p) * s * c, -(p * s * s + sa * c * c)
+            return math.sqrt(tau**2 + (coh - chi * tphi) ** 2) - (coh - tn * tphi)
+        return brentq(f, p, 1e9, xtol=1e-6, rtol=1e-15)
+
+    sec = case.cohesive_sets[0]
+    peak = axial_at_yield(sec.chi_p, sec.c_p, math.tan(sec.phi_p))
+    assert peak == pytest.approx(26.77e6, rel=2e-3)
+    plastic = np.asarray(h["n_plastic"]) > 0
+    first = int(np.argmax(plastic))
+    # the activation is located: the step before the first plastic one ends on the surface
+    assert sigma_a[first - 1] == pytest.approx(peak, rel=1e-9)
+    assert sigma_a.max() == pytest.approx(peak, rel=1e-9)
+    assert np.all(np.asarray(h["n_plastic"])[plastic] == n_pts)
+    for k in np.flatnonzero(plastic)[::5]:
+        row = steps == h["step"][k]
+        chi, coh, tphi = (np.asarray(pts[q])[row] for q in ("chi", "c", "tan_phi"))
+        assert np.ptp(coh) <= 1e-9 * sec.c_p and np.ptp(chi) <= 1e-9 * sec.chi_p  # uniform
+        assert sigma_a[k] == pytest.approx(axial_at_yield(chi[0], coh[0], tphi[0]), rel=1e-9)
+    assert sigma_a[-1] < 0.9 * peak
+    residual = p * (s * c + s * s * math.tan(sec.phi_r)) / (s * c - c * c * math.tan(sec.phi_r))
+    assert residual == pytest.approx(18.97e6, rel=1e-3) and sigma_a[-1] > residual
+    last = steps == h["step"][-1]
+    along_strike = np.abs(np.asarray(pts["jump_p_t1"])[last])
+    down_dip = np.abs(np.asarray(pts["jump_p_t2"])[last])
+    assert down_dip.min() > 1e-5 and along_strike.max() <= 1e-9 * down_dip.min()
+    np.testing.assert_allclose(np.abs(np.asarray(pts["n_z"])[last]), c, rtol=1e-12)
+    assert abs(h["energy_error"][-1]) <= 1e-8 * h["W_external"][-1]

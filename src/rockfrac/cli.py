@@ -55,12 +55,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _read_path(path: Path) -> np.ndarray:
-    """The jump path of ``rockfrac drive``: (n, 2) local jumps (t, n) [m]."""
-    from rockfrac.files import read_table
+    """The jump path of ``rockfrac drive``: (n, 2) local jumps (t, n), or (n, 3) (t1, t2, n) of a 3D
+    interface when the header names jump_t1, jump_t2 [m]."""
+    from rockfrac.files import read_table, read_text
     from rockfrac.values import MAX_DISPLACEMENT
 
-    cols = read_table(path, ("jump_t", "jump_n"), "a jump path [m]", max_abs=MAX_DISPLACEMENT)
-    return np.column_stack([cols["jump_t"], cols["jump_n"]])
+    first = next((line for line in read_text(path, "a jump path [m] (CSV text)").splitlines() if line.strip()), "")
+    header = {h.strip() for h in first.split(",")}
+    if header & {"jump_t1", "jump_t2"}:
+        if "jump_t" in header:
+            raise CaseError(f"{path}: columns jump_t (a 2D path) and jump_t1/jump_t2 (a 3D path) together; give "
+                            "jump_t, jump_n or jump_t1, jump_t2, jump_n")
+        names: tuple[str, ...] = ("jump_t1", "jump_t2", "jump_n")
+    else:
+        names = ("jump_t", "jump_n")
+    cols = read_table(path, names, "a jump path [m]", max_abs=MAX_DISPLACEMENT)
+    return np.column_stack([cols[c] for c in names])
 
 
 def _cmd_drive(args: argparse.Namespace) -> int:
@@ -72,10 +82,18 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     law_file = load_law(args.law)
     jumps = _read_path(Path(args.path))
     out = prepare_output(args.out, ("drive.csv",), overwrite=True)  # a material-point run: replaced
+    law = law_of_section(law_file.law)
     try:
-        rows = law_of_section(law_file.law).drive(jumps)
+        if jumps.shape[1] == 3:
+            from rockfrac.laws.traction3d import drive_3d
+
+            rows = drive_3d(law, jumps)
+        else:
+            rows = law.drive(jumps)
     except RuntimeError as err:
         raise CaseError(f"{args.path}: {err}") from None
+    except ValueError as err:
+        raise CaseError(f"{args.law}: [law]: {err}") from None
     w = CsvWriter(out / "drive.csv", list(rows))
     w.write_many(rows, len(rows["step"]))
     w.close()
@@ -153,7 +171,8 @@ def parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
     d = sub.add_parser("drive", help="material-point driver of a traction law along a jump path")
     d.add_argument("law", type=Path, help="law file (TOML, [law] section)")
-    d.add_argument("--path", type=Path, required=True, help="CSV with columns jump_t, jump_n [m]")
+    d.add_argument("--path", type=Path, required=True,
+                   help="CSV with columns jump_t, jump_n [m] (3D: jump_t1, jump_t2, jump_n)")
     d.add_argument("--out", type=Path, required=True)
     d.set_defaults(func=_cmd_drive)
     pp = sub.add_parser("paper", help="reproduce the paper's numerical study (figures, CSVs, report)")

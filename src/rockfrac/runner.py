@@ -23,7 +23,7 @@ from rockfrac.case.schema import Case, load_case
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
 from rockfrac.output import checkpoint
-from rockfrac.output.csvout import POINT_COLUMNS, rows_digest
+from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, rows_digest
 from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
 from rockfrac.output.observers import (
     Checkpoints,
@@ -212,8 +212,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         hist = HistoryCsv(out / "history.csv", history.columns, keep)
         observers.append(hist)
         if case.output.points and (built.cohesives or built.embeddeds):
-            extra = [n for g in built.cohesives for n in g.law.record_names if n not in POINT_COLUMNS]
-            observers.append(PointsCsv(out / "points.csv", POINT_COLUMNS + list(dict.fromkeys(extra)), keep))
+            # 3D surfaces have (t1, t2, n) components; a plane-strain hex8 specimen's cracks are 2D
+            columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) else POINT_COLUMNS
+            extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
+            observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
         if case.output.vtk:
             from rockfrac.output.fields import step_output
 

@@ -27,7 +27,7 @@ from rockfrac.case.program import StageSection
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
-from rockfrac.elements.interface_points import interface_points
+from rockfrac.elements.interface_points import interface_points, interface_points_3d
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh
@@ -138,8 +138,8 @@ def build(case: Case, path: str = "<case>") -> Built:
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives: list = []
     for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
-        cohesives += cohesive_groups(section, interface_points(mesh.nodes, mesh.interfaces[cells]), mesh,
-                                     f"cohesive {k + 1}")
+        points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+        cohesives += cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
     model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)

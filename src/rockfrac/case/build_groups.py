@@ -18,6 +18,7 @@ from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.laws.drucker_prager_params import DruckerPrager
+from rockfrac.laws.law3d import Law3D
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
 from rockfrac.laws.registry import law_class
 from rockfrac.laws.traction_law import TractionLaw
@@ -79,14 +80,24 @@ def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[BulkSection,
     return out
 
 
-def cohesive_groups(section, points, mesh: Mesh, name: str) -> list:
+def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none") -> list:
     """The CSE group of a cohesive set: EP, or RP with augmented multipliers.
 
     RP at junctions (a node split into k >= 3 copies): the multipliers of the pairs around it are
     statically indeterminate (circulating forces); they are taken with the least circulation, see
     :class:`rockfrac.elements.cse_groups.CohesiveRP`.
     """
-    law = law_of_section(section)
+    planar = law_of_section(section)
+    law: TractionLaw | Law3D = planar
+    if mesh.dim == 3:
+        key = f"[cohesive] ({name})"
+        if section.integration != "implicit" or section.viscosity or fallback != "none":
+            raise CaseError(f"{path}: {key}: integration = 'implex', viscosity and [solver] fallback = 'implex' "
+                            "are 2D only; 3D surfaces are integrated implicitly")
+        try:
+            law = Law3D(planar)
+        except ValueError as err:
+            raise CaseError(f"{path}: {key}: {err}") from None
     if section.form is CohesiveForm.ep:
         return [CohesiveEP(points, law, name=name, integration=section.integration,
                            viscosity=section.viscosity or 0.0)]

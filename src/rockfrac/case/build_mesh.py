@@ -23,7 +23,13 @@ def plane_element(name: str) -> Literal["quad4", "tri3"]:
 
 
 def mean_cell_size(mesh: Mesh) -> float:
-    """sqrt of the mean cell area (2D) [m]."""
+    """sqrt of the mean cell area (2D), cube root of the mean cell volume (3D) [m]."""
+    if mesh.dim == 3:
+        from rockfrac.fem.kinematics import element_gradients
+        from rockfrac.fem.reference import ELEMENTS
+
+        _, wdet = element_gradients(mesh.nodes[mesh.cells], ELEMENTS[mesh.cell_type])
+        return float(np.cbrt(wdet.sum(axis=1).mean()))
     x = mesh.nodes[mesh.cells][..., :2]
     area = 0.5 * np.abs(np.sum(x[:, :, 0] * np.roll(x[:, :, 1], -1, 1) - np.roll(x[:, :, 0], -1, 1) * x[:, :, 1], 1))
     return float(np.sqrt(area.mean()))
@@ -77,10 +83,8 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
         return mesh, []
     if sets[0].where is Placement.crack:  # the specimen carries its crack already
         return mesh, [np.arange(mesh.interfaces.shape[0])]
-    if mesh.dim != 2:
-        raise CaseError(f"{path}: [cohesive]: the mesh is 3D ({mesh.cell_type} cells) and rockfrac's cohesive "
-                        "surfaces are 2D (zero-thickness interfaces between edges): remove [cohesive] or "
-                        "use a 2D mesh (tri3 or quad4)")
+    if mesh.dim == 3:
+        return _insert_faces(sets, mesh, path)
     from rockfrac.mesh import interfaces as itf
 
     edges, cells, _ = itf.internal_edges(mesh)
@@ -94,6 +98,8 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
             mask = itf.edges_between(mesh, regions[0], regions[1])
         elif c.where is Placement.within:
             mask = itf.edges_within(mesh, regions[0])
+        elif c.where is Placement.surfaces:
+            raise CaseError(f"{path}: {key} where = 'surfaces' is for 3D meshes; in 2D use where = 'curves'")
         elif c.where is Placement.curves:
             curves = given(c.curves, f"{key} curves")
             require(curves, mesh.edge_sets, "curve group", f"{key} curves", path)
@@ -117,3 +123,40 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
     return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
+
+
+def _insert_faces(sets: list, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndarray]]:
+    """:func:`insert_cohesive` in 3D: every set's internal faces, split at once."""
+    from rockfrac.mesh import interfaces_3d as i3
+
+    faces = i3.internal_faces(mesh)
+    chosen, minus = [], []
+    for k, c in enumerate(sets):
+        key = f"[cohesive{'' if len(sets) == 1 else f' {k + 1}'}]"
+        regions = c.regions or []
+        if c.where in (Placement.between, Placement.within):
+            require(regions, mesh.regions, "region", f"{key} regions", path)
+        if c.where is Placement.between:
+            mask = i3.faces_between(mesh, regions[0], regions[1])
+        elif c.where is Placement.within:
+            mask = i3.faces_within(mesh, regions[0])
+        elif c.where is Placement.curves:
+            raise CaseError(f"{path}: {key} where = 'curves' is for 2D meshes; this one is 3D: use where = "
+                            "'surfaces' with the names of physical surfaces")
+        elif c.where is Placement.surfaces:
+            names = given(c.surfaces, f"{key} surfaces")
+            require(names, mesh.face_sets, "surface group", f"{key} surfaces", path)
+            mask = i3.faces_on(mesh, np.vstack([mesh.face_sets[n] for n in names]))
+        else:
+            mask = i3.all_faces(mesh)
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal face of the mesh")
+        chosen.append(idx)
+        minus.append(i3.minus_side(mesh, idx, regions[0]) if c.where is Placement.between else faces.cells[idx, 0])
+    flat = np.concatenate(chosen)
+    if np.unique(flat).size != flat.size:
+        raise CaseError(f"{path}: [cohesive]: two cohesive sets share faces; each face can carry one surface")
+    split = i3.insert_faces(mesh, flat, minus_cells=np.concatenate(minus))
+    bounds = np.cumsum([0] + [c.size for c in chosen])
+    return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]

@@ -32,22 +32,25 @@ class Placement(str, Enum):
     between = "between"
     within = "within"
     curves = "curves"
+    surfaces = "surfaces"
     all = "all"
 
 
 class CohesiveCommon(_Section):
     """The cohesive-surface form (EP penalty or RP multipliers) and where the surfaces go: the
-    specimen's crack, between two regions (grain/matrix), on every internal edge within a region,
-    along named curves, or on every internal edge."""
+    specimen's crack, between two regions (grain/matrix), on every internal edge (face in 3D) within
+    a region, along named curves (2D) or surfaces (3D), or on every internal edge (face)."""
 
     law: str = Field(DEFAULT, description=f"the traction law: {', '.join(repr(k) for k in LAWS)}")
     form: CohesiveForm = Field(strict=False, description="'ep' (elasto-plastic, penalty kn, kt) or 'rp' "
                                "(rigid-plastic, augmented Lagrange multipliers)")
     where: Placement = Field(Placement.crack, strict=False, description="'crack' (the specimen's), 'between' (two "
-                             "regions), 'within' (a region), 'curves' (named curves) or 'all'")
+                             "regions), 'within' (a region), 'curves' (named curves, 2D), 'surfaces' (named surfaces, 3D) or 'all'")
     regions: list[str] | None = Field(None, description="between: two regions (the first is the minus side); "
                                       "within: one region")
     curves: list[str] | None = Field(None, description="curves: names of curve groups (edge sets)")
+    surfaces: list[str] | None = Field(None, description="surfaces: names of surface groups (face sets) of a 3D "
+                                       "mesh")
     kn: Stiffness | None = Field(None, description="EP only: normal penalty stiffness [Pa/m]")
     kt: Stiffness | None = Field(None, description="EP only: tangential penalty stiffness [Pa/m]")
     augmentation: Stiffness | None = Field(None, description="RP only: augmentation r [Pa/m]")
@@ -70,6 +73,8 @@ class CohesiveCommon(_Section):
             raise ValueError(f"regions only apply to where = 'between' or 'within', not '{self.where.value}'")
         if (self.where is Placement.curves) != (self.curves is not None):
             raise ValueError("curves go with where = 'curves' (a list of curve group names)")
+        if (self.where is Placement.surfaces) != (self.surfaces is not None):
+            raise ValueError("surfaces go with where = 'surfaces' (a list of surface group names of a 3D mesh)")
         return self
 
     @model_validator(mode="after")

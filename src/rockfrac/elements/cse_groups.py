@@ -2,7 +2,9 @@
 (a :class:`rockfrac.laws.traction_law.TractionLaw` plug-in: its point loops, state and records).
 
 A group evaluates all its points at once (compiled kernels, no Python loop over points),
-keeps its committed and trial state apart and commits only on request.
+keeps its committed and trial state apart and commits only on request. In 2D (local frame (t, n))
+or 3D (local frame (t1, t2, n), the law a :class:`rockfrac.laws.law3d.Law3D`): the state starts
+with the dim local tractions, then the dim plastic jumps.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from rockfrac.elements.base import ElementGroup, Evaluation, Measure
 from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.fem.loads import StressField
 from rockfrac.laws.implex import implex_points
-from rockfrac.laws.traction_law import MODE_PLASTIC, S_TN, S_TT, S_UPN, S_UPT, TractionLaw
+from rockfrac.laws.law3d import Law3D
+from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw
 from rockfrac.laws.viscous import duvaut_lions_points
 
 
@@ -24,27 +27,29 @@ class _CohesiveGroup(ElementGroup):
     rigid = False  # RP: constrained points have no elastic jump
     checkpoint_attrs: tuple[str, ...] = ("state", "tangent", "dissipated")
 
-    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive"):
+    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, *, name: str = "cohesive"):
         self.name = name
         self.points = points
         self.law = law
         self.mode = law.mode_slot
         n = points.n
+        d = self.dim = points.dim
+        self._t, self._up = slice(0, d), slice(d, 2 * d)  # the state's tractions and plastic jumps
         self.state = law.initial_state(n)  # committed
         self.trial = law.initial_state(n)
-        self.tangent = np.zeros((n, 2, 2))  # committed local tangent dT/d[[u]]
-        self.trial_tangent = np.zeros((n, 2, 2))
+        self.tangent = np.zeros((n, d, d))  # committed local tangent dT/d[[u]]
+        self.trial_tangent = np.zeros((n, d, d))
         self.status = np.zeros(n, dtype=np.int64)
         self.dissipated = 0.0  # sum of w T . d[[u^p]] over the committed steps [J]
-        self.initial_traction = np.zeros((n, 2))  # global in-situ tractions [Pa]
+        self.initial_traction = np.zeros((n, d))  # global in-situ tractions [Pa]
 
     def begin_step(self) -> None:
         self.trial[:] = self.state
         self.trial_tangent[:] = self.tangent
 
     def commit(self) -> None:
-        d_up = self.trial[:, S_UPT:S_UPN + 1] - self.state[:, S_UPT:S_UPN + 1]
-        mean = 0.5 * (self.trial[:, S_TT:S_TN + 1] + self.state[:, S_TT:S_TN + 1])
+        d_up = self.trial[:, self._up] - self.state[:, self._up]
+        mean = 0.5 * (self.trial[:, self._t] + self.state[:, self._t])
         self.dissipated += float(np.einsum("pi,pi,p->", mean, d_up, self.points.weight))
         self.state[:] = self.trial
         self.tangent[:] = self.trial_tangent
@@ -63,8 +68,7 @@ class _CohesiveGroup(ElementGroup):
         self.initial_traction = self.points.consistent_tractions(stress)
         local = self.points.local(self.initial_traction)
         for st in (self.state, self.trial):
-            st[:, S_TT] = local[:, 0]
-            st[:, S_TN] = local[:, 1]
+            st[:, self._t] = local
 
     def initial_violation(self) -> str:
         f = self.law.yield_values(self.state)
@@ -73,21 +77,21 @@ class _CohesiveGroup(ElementGroup):
             return ""
         x = self.points.x[bad[0]]
         return (f"the in-situ stress puts {bad.size} points of {self.name} outside the traction law's yield "
-                f"surface (first at ({x[0]:.6g}, {x[1]:.6g}): F = {f[bad[0]]:.4g} Pa > 0)")
+                f"surface (first at ({', '.join(f'{v:.6g}' for v in x)}): F = {f[bad[0]]:.4g} Pa > 0)")
 
     def any_plastic(self) -> bool:
         """True if a point of the committed state is plastic."""
         return bool(np.any(self.state[:, self.mode] == MODE_PLASTIC))
 
     def flow_directions(self) -> np.ndarray:
-        """Unit global-frame directions (n_pts, 2) of dG/dT at the committed tractions.
+        """Unit global-frame directions (n_pts, dim) of dG/dT at the committed tractions.
 
         Where each point slides or opens next under continued loading; the normal n where dG/dT
         vanishes (no shear traction and no dilatancy).
         """
         g = self.law.flow(self.state)
         norm = np.linalg.norm(g, axis=1)
-        g = np.where(norm[:, None] > 0.0, g / np.where(norm > 0.0, norm, 1.0)[:, None], [0.0, 1.0])
+        g = np.where(norm[:, None] > 0.0, g / np.where(norm > 0.0, norm, 1.0)[:, None], np.eye(self.dim)[-1])
         return np.einsum("pji,pj->pi", self.points.frame, g)  # R^T g
 
     def path_measure(self, n_dofs: int) -> Measure:
@@ -105,7 +109,7 @@ class _CohesiveGroup(ElementGroup):
         return self.dissipated == 0.0 and not self.any_plastic()
 
     def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """Local tractions' increment (n_pts, 2) [Pa] along du from the committed state while no
+        """Local tractions' increment (n_pts, dim) [Pa] along du from the committed state while no
         point yields: the committed tangent on the jump increment (EP)."""
         dj = self.points.local(self.points.jumps(u + du) - self.points.jumps(u))
         return np.einsum("pij,pj->pi", self.tangent, dj)
@@ -113,11 +117,11 @@ class _CohesiveGroup(ElementGroup):
     def activation(self, u: np.ndarray, du: np.ndarray) -> float | None:
         if not self.activation_pending():
             return None
-        t0 = self.state[:, S_TT:S_TN + 1].copy()
+        t0 = self.state[:, self._t].copy()
         dt = self.traction_increment(u, du)
         trial = self.state.copy()
         f0 = self.law.yield_values(trial)
-        trial[:, S_TT:S_TN + 1] = t0 + dt
+        trial[:, self._t] = t0 + dt
         f1 = self.law.yield_values(trial)
         live = np.flatnonzero((f0 < -1e-9 * self.law.scale) & (f1 > 0.0))
         if not live.size:
@@ -126,7 +130,7 @@ class _CohesiveGroup(ElementGroup):
         lo, hi = np.zeros(live.size), np.ones(live.size)  # F(lo) <= 0 < F(hi)
         for _ in range(self.BISECTIONS):
             mid = 0.5 * (lo + hi)
-            at[:, S_TT:S_TN + 1] = t0 + mid[:, None] * dt
+            at[:, self._t] = t0 + mid[:, None] * dt
             out = self.law.yield_values(at) > 0.0
             hi = np.where(out, mid, hi)
             lo = np.where(out, lo, mid)
@@ -135,7 +139,7 @@ class _CohesiveGroup(ElementGroup):
     def point_records(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """:meth:`records` with the plastic jump's norm, the state named and the set."""
         rec = self.records(u)
-        rec["jump_p_norm"] = np.hypot(rec["jump_p_t"], rec["jump_p_n"])
+        rec["jump_p_norm"] = np.linalg.norm(self.state[:, self._up], axis=1)
         rec["state"] = np.where(rec["mode"] == MODE_PLASTIC, "plastic", "constrained" if self.rigid else "elastic")
         rec["set"] = np.full(rec["x"].shape[0], self.name)
         return rec
@@ -149,10 +153,10 @@ class _CohesiveGroup(ElementGroup):
         pts = self.points
         m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]
         grad = np.zeros(n_dofs)
-        np.add.at(grad, 2 * pts.plus, m[:, 0])
-        np.add.at(grad, 2 * pts.plus + 1, m[:, 1])
-        np.add.at(grad, 2 * pts.minus, -m[:, 0])
-        np.add.at(grad, 2 * pts.minus + 1, -m[:, 1])
+        d = self.dim
+        for a in range(d):
+            np.add.at(grad, d * pts.plus + a, m[:, a])
+            np.add.at(grad, d * pts.minus + a, -m[:, a])
 
         def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
             return float(np.sum(m * pts.jumps(u))), grad
@@ -164,6 +168,8 @@ class _CohesiveGroup(ElementGroup):
         traction, plastic jump, the law's own records, mode."""
         s = self.state
         jump = self.points.local(self.points.jumps(u))
+        if self.dim == 3:
+            return self._records_3d(s, jump)
         out = {
             "cell": self.points.cell,
             "x": self.points.x[:, 0],
@@ -171,11 +177,24 @@ class _CohesiveGroup(ElementGroup):
             "angle": np.arctan2(self.points.frame[:, 0, 1], self.points.frame[:, 0, 0]),
             "jump_t": jump[:, 0],
             "jump_n": jump[:, 1],
-            "T_t": s[:, S_TT],
-            "T_n": s[:, S_TN],
-            "jump_p_t": s[:, S_UPT],
-            "jump_p_n": s[:, S_UPN],
+            "T_t": s[:, 0],
+            "T_n": s[:, 1],
+            "jump_p_t": s[:, 2],
+            "jump_p_n": s[:, 3],
         }
+        out.update(self.law.records(s))
+        out["mode"] = s[:, self.mode]
+        return out
+
+    def _records_3d(self, s: np.ndarray, jump: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`records` of 3D points: position, the normal, and the (t1, t2, n) components."""
+        x, n = self.points.x, self.points.frame[:, 2]
+        out = {"cell": self.points.cell, "x": x[:, 0], "y": x[:, 1], "z": x[:, 2],
+               "n_x": n[:, 0], "n_y": n[:, 1], "n_z": n[:, 2]}
+        for k, c in enumerate(("t1", "t2", "n")):
+            out[f"jump_{c}"] = jump[:, k]
+        for k, name in enumerate(("T_t1", "T_t2", "T_n", "jump_p_t1", "jump_p_t2", "jump_p_n")):
+            out[name] = s[:, k]
         out.update(self.law.records(s))
         out["mode"] = s[:, self.mode]
         return out
@@ -195,7 +214,7 @@ class CohesiveEP(_CohesiveGroup):
     n_extra = 0
     MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint
 
-    def __init__(self, points: InterfacePoints, law: TractionLaw, *, name: str = "cohesive",
+    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, *, name: str = "cohesive",
                  integration: str = "implicit", viscosity: float = 0.0):
         if law.rigid:
             raise ValueError("an EP cohesive surface needs finite kn and kt")
@@ -204,17 +223,21 @@ class CohesiveEP(_CohesiveGroup):
         if not viscosity >= 0.0 or (viscosity > 0.0 and integration != "implicit"):
             raise ValueError(f"viscosity must be >= 0 and regularises the implicit update only (got {viscosity!r} "
                              f"with integration {integration!r})")
+        if points.dim == 3 and (integration != "implicit" or viscosity > 0.0):
+            raise ValueError("IMPL-EX integration and viscous regularisation are 2D only; 3D surfaces are "
+                             "integrated implicitly")
         super().__init__(points, law, name=name)
         self.dofs = points.dofs
-        self.up_prev = np.zeros((points.n, 2))  # IMPL-EX: committed plastic jumps one step earlier [m]
+        d = self.dim
+        self.up_prev = np.zeros((points.n, d))  # IMPL-EX: committed plastic jumps one step earlier [m]
         self.step_prev = np.zeros(2)  # IMPL-EX: (control mode, size) of the last committed step
         self._step = np.zeros(2)  # ... and of the step being solved
-        self._t_ex = np.zeros((points.n, 2))  # IMPL-EX: the explicit tractions of the last evaluation
+        self._t_ex = np.zeros((points.n, d))  # IMPL-EX: the explicit tractions of the last evaluation
         self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
         self.viscosity = float(viscosity)
         self.viscous_dissipated = 0.0  # sum of w <T - T_bar> . d[[u^p]] over the committed steps [J] (trapezoidal)
-        self._t_bar = np.zeros((points.n, 2))  # viscous: the law's own tractions of the last evaluation
-        self.overstress = np.zeros((points.n, 2))  # viscous: committed T - T_bar [Pa]
+        self._t_bar = np.zeros((points.n, d))  # viscous: the law's own tractions of the last evaluation
+        self.overstress = np.zeros((points.n, d))  # viscous: committed T - T_bar [Pa]
 
     checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "implex", "viscous_dissipated",
                                                        "overstress")
@@ -229,11 +252,11 @@ class CohesiveEP(_CohesiveGroup):
         the stepping keeps below [solver] implex_tol (Oliver et al. 2008). None when implicit."""
         if self.integration != "implex" or self.points.n == 0:
             return None
-        gap = np.linalg.norm(self._t_ex - self.trial[:, S_TT:S_TN + 1], axis=1)
+        gap = np.linalg.norm(self._t_ex - self.trial[:, self._t], axis=1)
         return float(gap.max()) / self.law.scale
 
     def switch_to_implex(self) -> bool:
-        if self.implex == 1.0 or self.viscosity > 0.0:
+        if self.implex == 1.0 or self.viscosity > 0.0 or self.dim == 3:
             return False
         self.implex = np.array(1.0)
         return True
@@ -262,12 +285,12 @@ class CohesiveEP(_CohesiveGroup):
 
     def commit(self) -> None:
         if self.viscosity > 0.0:
-            d_up = self.trial[:, S_UPT:S_UPN + 1] - self.state[:, S_UPT:S_UPN + 1]
-            over = self.trial[:, S_TT:S_TN + 1] - self._t_bar
+            d_up = self.trial[:, self._up] - self.state[:, self._up]
+            over = self.trial[:, self._t] - self._t_bar
             self.viscous_dissipated += float(np.einsum("pi,pi,p->", 0.5 * (over + self.overstress), d_up,
                                                        self.points.weight))
             self.overstress[:] = over
-        self.up_prev[:] = self.state[:, S_UPT:S_UPN + 1]  # kept in both modes: a switch has its history
+        self.up_prev[:] = self.state[:, self._up]  # kept in both modes: a switch has its history
         self.step_prev[:] = self._step
         super().commit()
 
@@ -278,9 +301,9 @@ class CohesiveEP(_CohesiveGroup):
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
         djump = pts.jumps(u) - pts.jumps(u_n)
-        n = pts.n
-        fe = np.empty((n, 4))
-        ke = np.empty((n, 4, 4))
+        n, nd = pts.n, 2 * self.dim
+        fe = np.empty((n, nd))
+        ke = np.empty((n, nd, nd))
         committed = self.state
         if self.viscosity > 0.0:  # an overstressed point returns even at zero jump increment (the laws'
             committed = self.state.copy()  # shortcut for committed plastic points would keep the overstress)
@@ -320,7 +343,7 @@ class CohesiveRP(_CohesiveGroup):
     PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
     rigid = True
 
-    def __init__(self, points: InterfacePoints, law: TractionLaw, augmentation: float,
+    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, augmentation: float,
                  junction: np.ndarray | None = None, *, name: str = "cohesive"):
         super().__init__(points, law, name=name)
         self.aug = float(augmentation)
@@ -328,7 +351,7 @@ class CohesiveRP(_CohesiveGroup):
         self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step
         self._pinned = np.zeros(points.n, dtype=bool)
         self._released = np.zeros(points.n, dtype=bool)  # pinned once and let go in this step
-        self.n_extra = 2 * points.n
+        self.n_extra = self.dim * points.n
         self.offset = -1
 
     def begin_step(self) -> None:
@@ -340,7 +363,7 @@ class CohesiveRP(_CohesiveGroup):
     def set_offset(self, offset: int) -> None:
         """Number the multiplier dofs from ``offset`` on."""
         self.offset = offset
-        lam = offset + np.arange(2 * self.points.n).reshape(-1, 2)
+        lam = offset + np.arange(self.n_extra).reshape(-1, self.dim)
         self.dofs = np.hstack([self.points.dofs, lam])
 
     def initial_unknowns(self, u0: np.ndarray) -> None:
@@ -352,31 +375,32 @@ class CohesiveRP(_CohesiveGroup):
         pair held in that (global) component, e.g. the copies of a split node on a supported edge.
         Their rows would be empty (a singular system); they are prescribed to zero instead, and the
         supports take that traction component."""
-        held = np.zeros(int(max(dirichlet.max(initial=0), 2 * max(self.points.plus.max(initial=0),
-                                                                      self.points.minus.max(initial=0)) + 1)) + 2,
+        d = self.dim
+        held = np.zeros(int(max(dirichlet.max(initial=0), d * max(self.points.plus.max(initial=0),
+                                                                      self.points.minus.max(initial=0)) + d - 1)) + 2,
                         dtype=bool)
         held[dirichlet] = True
         out = []
-        for a in range(2):
-            both = held[2 * self.points.minus + a] & held[2 * self.points.plus + a]
-            out.append(self.offset + 2 * np.flatnonzero(both) + a)
+        for a in range(d):
+            both = held[d * self.points.minus + a] & held[d * self.points.plus + a]
+            out.append(self.offset + d * np.flatnonzero(both) + a)
         return np.concatenate(out).astype(np.int64)
 
     def multipliers(self, u: np.ndarray) -> np.ndarray:
-        """Global-frame multipliers (n_pts, 2) [Pa]."""
-        return u[self.offset : self.offset + self.n_extra].reshape(-1, 2)
+        """Global-frame multipliers (n_pts, dim) [Pa]."""
+        return u[self.offset : self.offset + self.n_extra].reshape(-1, self.dim)
 
     def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """Local tractions' increment (n_pts, 2) [Pa] along du while every point is constrained: the
+        """Local tractions' increment (n_pts, dim) [Pa] along du while every point is constrained: the
         multipliers' (the jumps stay zero)."""
         return self.points.local(self.multipliers(u + du) - self.multipliers(u))
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
         djump = pts.jumps(u) - pts.jumps(u_n)
-        n = pts.n
-        fe = np.empty((n, 6))
-        ke = np.empty((n, 6, 6))
+        n, nd = pts.n, 3 * self.dim
+        fe = np.empty((n, nd))
+        ke = np.empty((n, nd, nd))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, self.mode].copy()
         self.law.rp_points(pts.frame, pts.weight, djump,

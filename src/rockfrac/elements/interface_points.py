@@ -1,4 +1,5 @@
-"""Nodal integration points of zero-thickness interfaces: one point per (minus, plus) node pair."""
+"""Nodal integration points of zero-thickness interfaces: one point per (minus, plus) node pair, in
+2D (edges) and 3D (triangular or quadrilateral faces)."""
 
 from __future__ import annotations
 
@@ -7,17 +8,19 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rockfrac.fem.loads import segment_pair_forces
+from rockfrac.fem.reference import QUAD4, TRI3, TRIANGLE_RULE
 
 
 @dataclass
 class InterfacePoints:
     """Integration points of the interface cells (paper Sect. 6.2: nodal integration).
 
-    minus, plus: (n_pts,) node indices of each pair; weight: (n_pts,) tributary length [m];
-    frame: (n_pts, 2, 2) rotation with rows (t, n), global -> local; x: (n_pts, 2) position [m];
-    cell: (n_pts,) first interface cell the point belongs to (for output); segments: (k, 4) the
-    interface cells (m0, m1, p0, p1) the points come from; segment_points: (k, 2) the point of each
-    cell's pair (m0, p0) and (m1, p1), -1 where the pair is one node (a crack tip).
+    minus, plus: (n_pts,) node indices of each pair; weight: (n_pts,) tributary length [m] (2D) or
+    area [m^2] (3D); frame: (n_pts, dim, dim) rotation with rows (t, n) in 2D, (t1, t2, n) in 3D,
+    global -> local; x: (n_pts, dim) position [m]; cell: (n_pts,) first interface cell the point
+    belongs to (for output); segments: (k, 2 m) the interface cells the points come from (2D: (m0,
+    m1, p0, p1)); segment_points: (k, m) the point of each cell's pair (m_j, p_j), -1 where the pair
+    is one node (a crack tip or front); segment_x: (k, m, dim) the cells' minus corners [m].
     """
 
     minus: np.ndarray
@@ -35,19 +38,27 @@ class InterfacePoints:
         return self.minus.shape[0]
 
     @property
+    def dim(self) -> int:
+        return self.frame.shape[1]
+
+    @property
     def dofs(self) -> np.ndarray:
-        """Displacement dofs (n_pts, 4): (minus x, minus y, plus x, plus y)."""
-        return np.stack([2 * self.minus, 2 * self.minus + 1, 2 * self.plus, 2 * self.plus + 1], axis=1)
+        """Displacement dofs (n_pts, 2 dim): (minus x, minus y[, minus z], plus x, plus y[, plus z])."""
+        d = self.dim
+        return np.concatenate([d * self.minus[:, None] + np.arange(d), d * self.plus[:, None] + np.arange(d)], axis=1)
 
     def jumps(self, u: np.ndarray) -> np.ndarray:
-        """Global-frame jumps u(+) - u(-) at the points, (n_pts, 2) [m]."""
-        u2 = u[: 2 * (u.shape[0] // 2)].reshape(-1, 2)
-        return u2[self.plus] - u2[self.minus]
+        """Global-frame jumps u(+) - u(-) at the points, (n_pts, dim) [m] (u: nodal dofs first)."""
+        d = self.dim
+        un = u[: d * (u.shape[0] // d)].reshape(-1, d)
+        return un[self.plus] - un[self.minus]
 
     def consistent_tractions(self, stress) -> np.ndarray:
         """Global tractions (n_pts, 2) [Pa] of a stress field at the points: the consistent nodal
         forces of sigma . n on the cells, summed per pair and divided by the pair's weight (exactly
         what the bulk on either side transmits, also where sigma varies along the crack)."""
+        if self.dim == 3:
+            return self._consistent_tractions_3d(stress)
         forces = segment_pair_forces(self.segment_x[:, 0], self.segment_x[:, 1], stress)
         total = np.zeros((self.n, 2))
         for end in range(2):
@@ -55,8 +66,19 @@ class InterfacePoints:
             np.add.at(total, self.segment_points[hit, end], forces[hit, end])
         return total / self.weight[:, None]
 
+    def _consistent_tractions_3d(self, stress) -> np.ndarray:
+        shape, x, nda = face_rule(self.segment_x)
+        k, nq = x.shape[:2]
+        sig = stress(x.reshape(-1, 3)).reshape(k, nq, 6)
+        full = sig[..., [0, 3, 5, 3, 1, 4, 5, 4, 2]].reshape(k, nq, 3, 3)
+        forces = np.einsum("qa,kqij,kqj->kai", shape, full, nda)  # (k, m, 3)
+        total = np.zeros((self.n, 3))
+        hit = self.segment_points >= 0
+        np.add.at(total, self.segment_points[hit], forces[hit])
+        return total / self.weight[:, None]
+
     def local(self, v: np.ndarray) -> np.ndarray:
-        """Rotate global vectors (n_pts, 2) into the local (t, n) frames."""
+        """Rotate global vectors (n_pts, dim) into the local frames."""
         return np.einsum("pij,pj->pi", self.frame, v)
 
 
@@ -104,3 +126,61 @@ def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
         segment_x=np.stack([xm0[:, :2], xm1[:, :2]], axis=1),
     )
 
+
+
+def face_rule(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shape values (qp, m), points (k, qp, 3) and n dA times the Gauss weight (k, qp, 3) [m^2] on
+    triangles (m = 3, three points) or bilinear quadrilaterals (m = 4, 2 x 2) with corners x (k, m, 3)."""
+    if x.shape[1] == 3:
+        pts, w = TRIANGLE_RULE
+        ref = TRI3
+    else:
+        pts, w = QUAD4.points, QUAD4.weights
+        ref = QUAD4
+    shape, dn = ref.shape(pts), ref.shape_gradients(pts)
+    nda = np.cross(np.einsum("qa,kai->kqi", dn[:, :, 0], x), np.einsum("qa,kai->kqi", dn[:, :, 1], x))
+    return shape, np.einsum("qa,kai->kqi", shape, x), nda * w[None, :, None]
+
+
+def local_frames_3d(normal: np.ndarray) -> np.ndarray:
+    """Frames (n, 3, 3) with rows (t1, t2, n) from unit normals (n, 3): t1 along the strike n x e_z
+    (horizontal; e_x where the surface is horizontal), t2 = n x t1 (along the dip), right-handed."""
+    strike = np.cross(normal, [0.0, 0.0, 1.0])
+    norm = np.linalg.norm(strike, axis=1)
+    flat = norm < 1e-8
+    t1 = np.where(flat[:, None], [1.0, 0.0, 0.0], strike / np.where(flat, 1.0, norm)[:, None])
+    t1 = t1 - np.einsum("pi,pi->p", t1, normal)[:, None] * normal  # exact orthogonality where flat
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return np.stack([t1, np.cross(normal, t1), normal], axis=1)
+
+
+def interface_points_3d(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
+    """Merge the node pairs of 3D interface cells (m_0 .. m_{k-1}, p_0 .. p_{k-1}) into nodal
+    integration points: weight = sum over the cells of int N_a dA [m^2], normal = the normalised sum
+    of int N_a n dA (the face normal on a plane crack). Pairs of one node (a crack front) are left out."""
+    m = cells.shape[1] // 2 if cells.size else 3
+    if cells.shape[0] == 0:
+        z = np.zeros(0, dtype=np.int64)
+        return InterfacePoints(z, z, np.zeros(0), np.zeros((0, 3, 3)), np.zeros((0, 3)), z,
+                               np.zeros((0, 2 * m), dtype=np.int64), np.zeros((0, m), dtype=np.int64),
+                               np.zeros((0, m, 3)))
+    k = cells.shape[0]
+    xm = nodes[cells[:, :m]]
+    shape, _, nda = face_rule(xm)
+    node_area = np.einsum("qa,kq->ka", shape, np.linalg.norm(nda, axis=2))  # int N_a dA
+    node_normal = np.einsum("qa,kqi->kai", shape, nda)  # (k, m, 3)
+    pairs = np.stack([cells[:, :m], cells[:, m:]], axis=2).reshape(-1, 2)
+    area, nrm = node_area.ravel(), node_normal.reshape(-1, 3)
+    owner = np.repeat(np.arange(k), m)
+    split = pairs[:, 0] != pairs[:, 1]
+    uniq, first, inverse = np.unique(pairs[split], axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    segment_points = np.full(k * m, -1, dtype=np.int64)
+    segment_points[np.flatnonzero(split)] = inverse
+    weight = np.bincount(inverse, weights=area[split])
+    n_sum = np.stack([np.bincount(inverse, weights=nrm[split, i]) for i in range(3)], axis=1)
+    normal = n_sum / np.linalg.norm(n_sum, axis=1)[:, None]
+    return InterfacePoints(minus=uniq[:, 0].copy(), plus=uniq[:, 1].copy(), weight=weight,
+                           frame=local_frames_3d(normal), x=nodes[uniq[:, 0]].copy(), cell=owner[split][first],
+                           segments=np.asarray(cells, dtype=np.int64), segment_points=segment_points.reshape(k, m),
+                           segment_x=xm)

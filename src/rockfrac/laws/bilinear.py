@@ -189,6 +189,15 @@ def return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
 
 
 @nb.njit(cache=True)
+def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
+    """:func:`return_map`, with FAIL where it raises (a singular tangent): the law's trial_kernel."""
+    try:
+        return return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D)
+    except Exception:  # noqa: BLE001 (Numba catches no narrower class; np.linalg.inv's LinAlgError)
+        return FAIL
+
+
+@nb.njit(cache=True)
 def point_update(du, s_old, p, s_new, D):
     """One EP update of one point by the local jump increment du (2,) [m]."""
     return return_map(s_old[S_TT] + du[0] / p[P_CT], s_old[S_TN] + du[1] / p[P_CN], p[P_CT], p[P_CN], s_old, p,
@@ -273,6 +282,7 @@ class Bilinear(TractionLaw):
     record_names = ("kappa", "strength")
     ep_kernel = ep_points
     rp_kernel = rp_points
+    trial_kernel = trial_return
 
     @property
     def delta_c(self) -> float:

@@ -23,7 +23,7 @@ from rockfrac.fem.interface import (
     pair_blocks_local,
 )
 from rockfrac.laws import cohesive_surface as _law
-from rockfrac.laws.cohesive import ep_update, ep_update_jump, return_step
+from rockfrac.laws.cohesive import elastic_update, ep_update, ep_update_jump, return_step
 from rockfrac.laws.cohesive_params import (
     MODE_PLASTIC,
     S_DGAMMA,
@@ -35,7 +35,7 @@ from rockfrac.laws.cohesive_params import (
     CohesiveLaw,
 )
 from rockfrac.laws.cohesive_solve import workspace
-from rockfrac.laws.cohesive_system import START_GIVEN, START_NONE
+from rockfrac.laws.cohesive_system import START_CROSSING, START_GIVEN, START_NONE
 from rockfrac.laws.traction_law import TractionLaw, hold_constrained, keep_committed
 from rockfrac.threads import parallel_kernel
 from rockfrac.values import Angle, Energy, Rate, Section, Strength
@@ -167,6 +167,17 @@ def yield_values(state, p):
     return out
 
 
+@nb.njit(cache=True)
+def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
+    """The EP return (eq. 31) from the trial (tr_t, tr_n) [Pa], K^e = diag(1/ct, 1/cn), T_old = s_old's
+    traction (du = C (T^tr - T_old)), D = dT/d(du) [Pa/m]: a function of the trial alone when P_THETA = 0."""
+    if _law.yield_function(tr_t, tr_n, s_old[S_EPSN], s_old[S_EPSS], p) <= _law.elastic_tolerance(p):
+        return elastic_update(tr_t, tr_n, ct, cn, s_old, s_new, D)  # only a yielding point allocates
+    t_t, t_n = s_old[S_TT], s_old[S_TN]
+    return return_step((tr_t - t_t) * ct, (tr_n - t_n) * cn, t_t, t_n, t_t, t_n, np.int64(START_CROSSING), ct, cn,
+                       s_old, p, s_new, D, workspace())
+
+
 class MohrCoulombSurface(TractionLaw):
     """The tension-capped hyperbolic Mohr-Coulomb law with work softening (paper Sect. 4.2)."""
 
@@ -179,6 +190,7 @@ class MohrCoulombSurface(TractionLaw):
     record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
     ep_kernel = ep_points
     rp_kernel = rp_points
+    trial_kernel = trial_return
 
     def __init__(self, params: MohrCoulombParameters, kn: float | None = None, kt: float | None = None):
         self.law = CohesiveLaw(**{k: getattr(params, k) for k in CohesiveLaw.__dataclass_fields__
@@ -219,4 +231,5 @@ class MohrCoulombSurface(TractionLaw):
         return self.law.softening_modulus()
 
 
-__all__ = ["MohrCoulombParameters", "MohrCoulombSurface", "WorkRule", "ep_points", "ep_update", "rp_points"]
+__all__ = ["MohrCoulombParameters", "MohrCoulombSurface", "WorkRule", "ep_points", "ep_update", "rp_points",
+           "trial_return"]

@@ -19,7 +19,11 @@ parameter vector p):
 - ``rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
   fe, ke, status, switched)``: the rigid-plastic form with augmented multipliers (Sect. 6.2), blocks
   (n, 6), (n, 6, 6) (see :func:`rockfrac.fem.interface.multiplier_rows`);
-- ``point_update(du, s_old, p, s_new, D)``: one EP update of one point (the material-point driver).
+- ``point_update(du, s_old, p, s_new, D)``: one EP update of one point (the material-point driver);
+- ``trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) -> status`` (``trial_kernel``): the return
+  from the trial traction (tr_t, tr_n) [Pa] with K = diag(1/ct, 1/cn), T_old = s_old's traction,
+  D = dT/d(du) [Pa/m], never raising (< 0 on failure): the 2D kernel that
+  :mod:`rockfrac.laws.traction3d` lifts to 3D, isotropic in the interface plane.
 """
 
 from __future__ import annotations
@@ -76,6 +80,7 @@ class TractionLaw(ABC):
     record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
     ep_kernel: ClassVar[Any]  # the compiled ep_points(..., p, ...) of the module docstring
     rp_kernel: ClassVar[Any]  # the compiled rp_points(..., p, ...)
+    trial_kernel: ClassVar[Any]  # the compiled trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) (3D)
 
     def __init__(self, params: Any, kn: float | None = None, kt: float | None = None):
         self.params = params

@@ -19,7 +19,9 @@ class Mesh:
         seen from above, then top).
     interfaces: (n_if, 4) zero-thickness 2D interface cells, ordered (m0, m1, p0, p1): minus-side
         nodes m0 -> m1 along the tangent t, and the plus-side nodes p0, p1 facing them. The normal
-        n points from the minus to the plus side with (t, n) right-handed.
+        n points from the minus to the plus side with (t, n) right-handed. In 3D (n_if, 6) or
+        (n_if, 8): a minus face (m_0 .. m_{k-1}) whose right-hand normal points to the plus side,
+        then the plus copies p_j of its nodes (rockfrac.mesh.interfaces_3d).
     node_sets: named node index arrays (Dirichlet conditions, reactions).
     edge_sets: named (k, 2) node-pair arrays of 2D boundary edges, counter-clockwise (pressure loads).
     face_sets: named (k, 4) node arrays of 3D boundary quadrilaterals (hex8 meshes) or (k, 3)
@@ -39,7 +41,8 @@ class Mesh:
     def __post_init__(self) -> None:
         self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
         self.cells = np.ascontiguousarray(self.cells, dtype=np.int64)
-        self.interfaces = np.ascontiguousarray(self.interfaces, dtype=np.int64).reshape(-1, 4)
+        width = 4 if self.nodes.shape[1] == 2 else 2 * {4: 3, 8: 4}.get(self.cells.shape[1], 3)
+        self.interfaces = np.ascontiguousarray(self.interfaces, dtype=np.int64).reshape(-1, width)
         if not self.regions:
             self.regions = {"bulk": np.arange(self.cells.shape[0])}
 
@@ -78,13 +81,15 @@ class Mesh:
             if bad.size:
                 problems.append(f"cells {bad[:5].tolist()} are inverted or degenerate (det J <= 0)")
         if self.interfaces.size:
-            if self.dim != 2:
-                problems.append("interface cells are 2D only")
-            xm = self.nodes[self.interfaces[:, :2]]
-            xp = self.nodes[self.interfaces[:, 2:]]
-            lengths = np.linalg.norm(xm[:, 1] - xm[:, 0], axis=1)
-            if np.any(lengths <= 0.0):
-                problems.append("interfaces with zero length")
+            half = self.interfaces.shape[1] // 2
+            xm = self.nodes[self.interfaces[:, :half]]
+            xp = self.nodes[self.interfaces[:, half:]]
+            if self.dim == 2:
+                size = np.linalg.norm(xm[:, 1] - xm[:, 0], axis=1)
+            else:
+                size = np.linalg.norm(np.cross(xm[:, 1] - xm[:, 0], xm[:, -1] - xm[:, 0]), axis=1)
+            if np.any(size <= 0.0):
+                problems.append(f"interfaces with zero {'length' if self.dim == 2 else 'area'}")
             gap = np.abs(xp - xm).max(initial=0.0)
             if gap > 1e-9 * max(1.0, np.abs(self.nodes).max()):
                 problems.append("interface node pairs do not coincide in the reference configuration")

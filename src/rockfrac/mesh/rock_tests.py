@@ -20,6 +20,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from rockfrac.mesh.gmsh_io import gmsh_session
 
 
@@ -227,13 +229,17 @@ def cylinder(path: str | Path, diameter: float = 0.05, height: float = 0.1, elem
              joint_dip: float | None = None) -> Path:
     """The triaxial specimen: a cylinder of ``diameter`` and ``height`` [m] along z, base at z = 0,
     axis through the origin, tetrahedra of ``element_size`` (default diameter / 8). Region rock;
-    faces top, bottom, side; points centre_bottom (0, 0, 0) and rim_bottom (r, 0, 0).
+    faces top, bottom, side; points centre_bottom (0, 0, 0) and rim_bottom (r, 0, 0). With
+    ``joint_dip`` [rad] it is cut by a plane through its centre, dipping at that angle from the
+    horizontal towards +x (the face ``joint``, internal, z = H/2 - x tan(dip); the cells on both
+    sides conform).
 
-    Intact, the cylinder is a triangulated disc extruded in layers (each prism split into three
-    tetrahedra), so its faceted side is a vertical prism and a uniform lateral pressure with a
-    uniform axial stress is an exact, homogeneous solution. With ``joint_dip`` [rad] it is cut by a
-    plane through its centre, dipping at that angle from the horizontal towards +x (the face
-    ``joint``, internal; the cells on both sides conform), meshed unstructured."""
+    The disc is triangulated by Gmsh and stacked in layers along z (between the base, the joint
+    plane and the top), every prism split into three tetrahedra with the diagonals of its sides
+    through their lowest-numbered node (so neighbours conform). All the side's facets are vertical,
+    so a uniform lateral pressure with a uniform axial stress is an exact, homogeneous solution, also
+    with the joint open or sliding uniformly.
+    """
     import gmsh
 
     r = 0.5 * diameter
@@ -241,46 +247,103 @@ def cylinder(path: str | Path, diameter: float = 0.05, height: float = 0.1, elem
     if joint_dip is not None and not 0.0 <= joint_dip < math.atan2(height, diameter):
         raise ValueError(f"joint_dip must be in [0, atan(H / D)) = [0, {math.atan2(height, diameter):.4g}) rad "
                          f"so that the joint plane cuts the side only, got {joint_dip!r}")
-    with gmsh_session("rockfrac_cylinder"):
+    with gmsh_session("rockfrac_cylinder_disc"):
         occ = gmsh.model.occ
-        if joint_dip is None:  # a triangulated disc extruded in layers: every side facet vertical
-            disk = occ.addDisk(0, 0, 0, r, r)
-            occ.fragment([(2, disk)], [(0, occ.addPoint(0, 0, 0)), (0, occ.addPoint(r, 0, 0))])
-            layers = max(1, round(height / h))
-            occ.extrude(occ.getEntities(2), 0, 0, height, numElements=[layers], recombine=False)
-        else:
-            body = [(3, occ.addCylinder(0, 0, 0, 0, 0, height, r))]
-            plane = occ.addDisk(0, 0, 0, 2 * diameter, 2 * diameter)
-            occ.rotate([(2, plane)], 0, 0, 0, 0, 1, 0, joint_dip)  # about +y: z = -x tan(dip), down towards +x
-            occ.translate([(2, plane)], 0, 0, 0.5 * height)
-            occ.fragment(body, [(0, occ.addPoint(0, 0, 0)), (0, occ.addPoint(r, 0, 0)), (2, plane)])
+        disk = occ.addDisk(0, 0, 0, r, r)
+        occ.fragment([(2, disk)], [(0, occ.addPoint(0, 0, 0)), (0, occ.addPoint(r, 0, 0))])
         occ.synchronize()
-        e = 1e-6 * max(diameter, height)
-        inside = gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, -e, r + e, r + e, height + e, dim=2)
-        outside = [t for _, t in gmsh.model.getEntities(2) if (2, t) not in inside]
-        if outside:  # the cutting disk beyond the cylinder
-            gmsh.model.removeEntities([(2, t) for t in outside], recursive=True)
-        volumes = [t for _, t in gmsh.model.getEntities(3)]
-        gmsh.model.addPhysicalGroup(3, volumes, name="rock")
-        top = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, height - e, r + e, r + e,
-                                                                  height + e, dim=2)]
-        bottom = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-r - e, -r - e, -e, r + e, r + e, e, dim=2)]
-        faces = [abs(t) for v in volumes for _, t in gmsh.model.getBoundary([(3, v)], oriented=False)]
-        internal = sorted({t for t in faces if faces.count(t) > 1})  # between two volumes
-        side = sorted(set(faces) - set(internal) - set(top) - set(bottom))
-        gmsh.model.addPhysicalGroup(2, top, name="top")
-        gmsh.model.addPhysicalGroup(2, bottom, name="bottom")
-        gmsh.model.addPhysicalGroup(2, side, name="side")
-        if joint_dip is not None:
-            gmsh.model.addPhysicalGroup(2, internal, name="joint")
-        for name, x in (("centre_bottom", 0.0), ("rim_bottom", r)):
-            pts = gmsh.model.getEntitiesInBoundingBox(x - e, -e, -e, x + e, e, e, dim=0)
-            gmsh.model.addPhysicalGroup(0, [t for _, t in pts], name=name)
         for key, value in {"General.NumThreads": 1, "Mesh.MeshSizeMax": h, "Mesh.MeshSizeMin": 0.0,
-                           "Mesh.Algorithm3D": 1, "Mesh.MshFileVersion": 4.1}.items():
+                           "Mesh.Algorithm": 6}.items():
             gmsh.option.setNumber(key, value)
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        gmsh.model.mesh.generate(3)
+        gmsh.model.mesh.generate(2)
+        tags, coords, _ = gmsh.model.mesh.getNodes()
+        _, _, tri_nodes = gmsh.model.mesh.getElements(2)
+    xy = np.asarray(coords).reshape(-1, 3)[:, :2]
+    index = np.empty(int(np.max(tags)) + 1, dtype=np.int64)
+    index[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
+    tri = index[np.asarray(tri_nodes[0], dtype=np.int64)].reshape(-1, 3)
+    a, b = xy[tri[:, 1]] - xy[tri[:, 0]], xy[tri[:, 2]] - xy[tri[:, 0]]
+    tri[a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0] = tri[a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0][:, [0, 2, 1]]
+    z_joint = 0.5 * height - xy[:, 0] * math.tan(joint_dip or 0.0)
+    if joint_dip is None:
+        fractions = np.linspace(0.0, 1.0, max(1, round(height / h)) + 1)[:, None]
+        z = fractions * height * np.ones(len(xy))
+        joint_layer = None
+    else:
+        low = np.linspace(0.0, 1.0, max(1, round(0.5 * height / h)) + 1)[:, None] * z_joint
+        up = z_joint + np.linspace(0.0, 1.0, max(1, round(0.5 * height / h)) + 1)[1:, None] * (height - z_joint)
+        z = np.vstack([low, up])
+        joint_layer = low.shape[0] - 1
+    nodes, tets, faces = _layered_prisms(xy, tri, z)
+    layers = faces.pop("layer")
+    if joint_layer is not None:
+        faces["joint"] = layers[joint_layer]
+    return _write_tets(path, nodes, tets, faces,
+                       {"centre_bottom": int(np.argmin(np.linalg.norm(xy, axis=1))),
+                        "rim_bottom": int(np.argmin(np.linalg.norm(xy - [r, 0.0], axis=1)))})
+
+
+def _layered_prisms(xy: np.ndarray, tri: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Nodes (n_layers n2, 3), tetrahedra and faces of a triangulated disc xy (n2, 2), tri (k, 3)
+    counter-clockwise, stacked at heights z (n_layers, n2): node k n2 + i is xy[i] at z[k, i]. Faces:
+    bottom, top (outward), side (outward), layer: the triangles of every layer (k, 3) by layer."""
+    n2, n_layers = len(xy), z.shape[0]
+    nodes = np.column_stack([np.tile(xy, (n_layers, 1)), z.ravel()])
+    # each prism: bottom triangle rotated to start at its lowest node (same orientation)
+    first = np.argmin(tri, axis=1)
+    rot = np.stack([tri[np.arange(len(tri)), (first + j) % 3] for j in range(3)], axis=1)
+    tets = []
+    for k in range(n_layers - 1):
+        v0, v1, v2 = (k * n2 + rot[:, j] for j in range(3))
+        v3, v4, v5 = v0 + n2, v1 + n2, v2 + n2
+        one = (v1 < v2)[:, None]  # the side (v1, v2, v5, v4) split through v1 or through v2
+        tets.append(np.where(one, np.stack([v0, v1, v2, v5], 1), np.stack([v0, v1, v2, v4], 1)))
+        tets.append(np.where(one, np.stack([v0, v1, v5, v4], 1), np.stack([v0, v4, v2, v5], 1)))
+        tets.append(np.stack([v0, v4, v5, v3], 1))
+    cells = np.vstack(tets)
+    x = nodes[cells]
+    vol = np.einsum("ki,ki->k", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0])
+    cells[vol < 0] = cells[vol < 0][:, [0, 2, 1, 3]]
+    # the disc's boundary edges, counter-clockwise: the edges of one triangle only
+    edges = np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = np.sort(edges, axis=1)
+    _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    rim = edges[count[inverse.ravel()] == 1]
+    side = []
+    for k in range(n_layers - 1):
+        a0, b0 = k * n2 + rim[:, 0], k * n2 + rim[:, 1]
+        a1, b1 = a0 + n2, b0 + n2
+        low_a = (a0 < b0)[:, None]  # the diagonal through the lowest node, as in the prisms
+        side.append(np.where(low_a, np.stack([a0, b0, b1], 1), np.stack([a0, b0, a1], 1)))
+        side.append(np.where(low_a, np.stack([a0, b1, a1], 1), np.stack([b0, b1, a1], 1)))
+    layers = [k * n2 + tri for k in range(n_layers)]
+    return nodes, cells, {"bottom": layers[0][:, [0, 2, 1]], "top": layers[-1], "side": np.vstack(side),
+                          "layer": layers}
+
+
+def _write_tets(path: str | Path, nodes: np.ndarray, tets: np.ndarray, faces: dict, points: dict) -> Path:
+    """Write tetrahedra (region rock), named triangle faces and named single nodes as a Gmsh .msh file."""
+    import gmsh
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with gmsh_session("rockfrac_tets"):
+        model = gmsh.model
+        model.addDiscreteEntity(3, 1)
+        model.mesh.addNodes(3, 1, np.arange(1, len(nodes) + 1), nodes.ravel())
+        model.mesh.addElementsByType(1, 4, np.arange(1, len(tets) + 1), (tets + 1).ravel())
+        model.addPhysicalGroup(3, [1], name="rock")
+        tag = len(tets) + 1
+        for k, (name, tri) in enumerate(faces.items()):
+            model.addDiscreteEntity(2, k + 1)
+            model.mesh.addElementsByType(k + 1, 2, np.arange(tag, tag + len(tri)), (tri + 1).ravel())
+            tag += len(tri)
+            model.addPhysicalGroup(2, [k + 1], name=name)
+        for k, (name, node) in enumerate(points.items()):
+            model.addDiscreteEntity(0, k + 1)
+            model.mesh.addElementsByType(k + 1, 15, [tag], [node + 1])
+            tag += 1
+            model.addPhysicalGroup(0, [k + 1], name=name)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.write(str(path))
     return path

@@ -94,8 +94,9 @@ def outer_boundary(mesh: Mesh) -> np.ndarray:
     """The boundary sides of the body without the faces of its cohesive cracks: (k, 2) edges
     counter-clockwise (2D) or (k, 4) outward faces (3D). In-situ tractions act here."""
     sides = boundary_edges(mesh) if mesh.dim == 2 else boundary_faces(mesh)
-    if not mesh.interfaces.size or mesh.dim != 2:
+    if not mesh.interfaces.size:
         return sides
-    crack = np.vstack([mesh.interfaces[:, :2], mesh.interfaces[:, 2:]])
+    half = mesh.interfaces.shape[1] // 2
+    crack = np.vstack([mesh.interfaces[:, :half], mesh.interfaces[:, half:]])
     _, count = match(crack, sides)
     return sides[count == 0]

@@ -24,6 +24,12 @@ POINT_COLUMNS = [
     "step", "point", "set", "cell", "x", "y", "angle", "jump_t", "jump_n", "T_t", "T_n", "jump_p_t", "jump_p_n",
     "jump_p_norm", "eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi", "gamma", "zeta", "c_p", "state",
 ]
+#: points.csv of a 3D model: position, unit normal, local (t1, t2, n) components
+POINT_COLUMNS_3D = [
+    "step", "point", "set", "cell", "x", "y", "z", "n_x", "n_y", "n_z", "jump_t1", "jump_t2", "jump_n", "T_t1", "T_t2",
+    "T_n", "jump_p_t1", "jump_p_t2", "jump_p_n", "jump_p_norm", "eps_n_p", "eps_s_p", "chi", "c", "tan_phi",
+    "tan_psi", "state",
+]
 
 
 def _fmt(v: Any) -> str:

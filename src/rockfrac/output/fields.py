@@ -34,25 +34,28 @@ def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp:
 
 
 def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
-    """Per interface cell: the mean of its two node-pair points (jump, traction, strengths, state)."""
+    """Per interface cell: the mean of its node-pair points (jump, traction, strengths, state), the
+    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D)."""
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
-    n_if = cells.shape[0]
-    sums = {"jump": np.zeros((n_if, 2)), "traction": np.zeros((n_if, 2)), "plastic_jump": np.zeros((n_if, 2))}
+    n_if, half = cells.shape[0], cells.shape[1] // 2
+    comps = ("t", "n") if mesh.dim == 2 else ("t1", "t2", "n")  # the local frame
+    d = len(comps)
+    sums = {"jump": np.zeros((n_if, d)), "traction": np.zeros((n_if, d)), "plastic_jump": np.zeros((n_if, d))}
     for name in dict.fromkeys(n for g in built.cohesives for n in g.law.record_names):
         sums[name] = np.full(n_if, np.nan)  # NaN where the cell's law has no such quantity
     count = np.zeros(n_if)
     state = np.full(n_if, -1, dtype=np.int8)
     for g in built.cohesives:
         rec = g.records(u)
-        vals = {"jump": np.column_stack([rec["jump_t"], rec["jump_n"]]),
-                "traction": np.column_stack([rec["T_t"], rec["T_n"]]),
-                "plastic_jump": np.column_stack([rec["jump_p_t"], rec["jump_p_n"]])}
+        vals = {"jump": np.column_stack([rec[f"jump_{c}"] for c in comps]),
+                "traction": np.column_stack([rec[f"T_{c}"] for c in comps]),
+                "plastic_jump": np.column_stack([rec[f"jump_p_{c}"] for c in comps])}
         vals.update({name: rec[name] for name in g.law.record_names})
         rigid = g.rigid
         st = np.where(rec["mode"] == MODE_PLASTIC, CrackState.PLASTIC,
                       CrackState.CONSTRAINED if rigid else CrackState.ELASTIC).astype(np.int8)
-        for a, b in ((0, 2), (1, 3)):  # the two node pairs of each interface cell
+        for a, b in ((j, half + j) for j in range(half)):  # the node pairs of each interface cell
             idx, hit = _pair_index(g.points.minus, g.points.plus, n, cells[:, a], cells[:, b])
             for name, v in vals.items():
                 if name in g.law.record_names:  # start from 0 where this law writes

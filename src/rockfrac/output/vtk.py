@@ -4,7 +4,8 @@ Plain arrays in, files out; nothing here knows the engine. A step is one unstruc
 holds three kinds of cells (the cell field ``cell_kind`` tells them apart, see `CellKind`):
 
 - bulk cells: "triangle", "quad", "tetra" or "hexahedron" (rockfrac's tri3, quad4, tet4, hex8; VTK order);
-- cohesive interfaces (m0, m1, p0, p1) as "quad" cells (m0, m1, p1, p0). They have zero area in
+- cohesive interfaces (m0, m1, p0, p1) as "quad" cells (m0, m1, p1, p0) (in 3D the minus face and
+  the plus face as one "wedge" (triangles) or "hexahedron" (quadrilaterals)). They have zero area in
   the reference configuration and open with ParaView's "Warp By Vector": the minus nodes move
   with the minus side and the plus nodes with the plus side. Opened, the quad is counter-
   clockwise, since (t, n) is right-handed. (A "line" (m0, m1) would hide the opening.) In 2D
@@ -234,7 +235,11 @@ def step_fields(nodes: np.ndarray, cells: np.ndarray, cell_type: str, *,
     data: list[dict[str, np.ndarray]] = [dict(bulk_data or {})]
     kinds = [CellKind.BULK]
     if interfaces is not None and len(interfaces):
-        blocks.append(("quad", np.asarray(interfaces)[:, [0, 1, 3, 2]]))
+        itf = np.asarray(interfaces)
+        if itf.shape[1] == 4:  # 2D (m0, m1, p0, p1) as the quad (m0, m1, p1, p0)
+            blocks.append(("quad", itf[:, [0, 1, 3, 2]]))
+        else:  # 3D: the minus face, then the plus face above it: a wedge or a hexahedron
+            blocks.append(("wedge" if itf.shape[1] == 6 else "hexahedron", itf))
         data.append(dict(interface_data or {}))
         kinds.append(CellKind.INTERFACE)
     points = nodes

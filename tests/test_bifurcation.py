@@ -181,6 +181,23 @@ def test_3d_search_matches_rudnicki_rice(phi, psi, nu, principal):
     assert np.abs(loc.normals @ v[:, 1]).max() < 1e-7  # in the plane of the extreme principal axes
 
 
+@pytest.mark.parametrize("phi,psi,nu,axial,lateral", [(30.0, 5.0, 0.3, -9.0e4, -2.0e4), (40.0, 20.0, 0.25, -6.0e4, 0.0)])
+def test_3d_search_on_an_axisymmetric_state_finds_the_rudnicki_rice_cone(phi, psi, nu, axial, lateral):
+    """Triaxial compression (sigma_2 = sigma_3): every normal of the cone at theta0 from the axis is
+    critical; the search returns normals on that cone, whatever the axis's direction."""
+    lw = law(phi, psi, nu)
+    R, _ = np.linalg.qr(np.random.default_rng(7).normal(size=(3, 3)))
+    sig = rotated((axial, lateral, lateral), R)
+    loc = bf.localization_at(lw, sig, plane_strain=False)
+    theta0 = bf.rudnicki_rice_angle(sig, lw.beta, lw.b, nu)
+    axis = R[:, 0]  # the compressive axis, rotated
+    assert 0.0 < theta0 < 0.5 * math.pi and loc.normals.shape[0] >= 1
+    np.testing.assert_allclose(np.abs(loc.normals @ axis), math.cos(theta0), atol=1e-6)
+    # the same state about another axis: the same cone angle
+    loc2 = bf.localization_at(lw, rotated((axial, lateral, lateral), np.eye(3)), plane_strain=False)
+    np.testing.assert_allclose(np.abs(loc2.normals[:, 0]), math.cos(theta0), atol=1e-6)
+
+
 # --- slip direction and the driver path -------------------------------------------------------------
 
 

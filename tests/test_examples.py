@@ -75,11 +75,13 @@ def test_every_example_case_runs_small(tmp_path, path):
 @pytest.mark.parametrize("script", sorted(EXAMPLES.rglob("mesh.py")), ids=lambda p: p.parent.name)
 def test_every_mesh_script_writes_a_mesh(tmp_path, script):
     out = tmp_path / "m.msh"
-    size = {"brazilian": "0.01", "borehole": "0.02", "bending": "0.01", "triaxial": "0.02"}[script.parent.name]
-    subprocess.run([sys.executable, str(script), "--size", size, "--out", str(out)], check=True,
+    size = {"brazilian": ["--size", "0.01"], "borehole": ["--size", "0.02"], "bending": ["--size", "0.01"],
+            "triaxial": ["--size", "0.02"], "aggregate_3d": ["--cells", "3", "3", "6", "--grains", "4"]}
+    subprocess.run([sys.executable, str(script), *size[script.parent.name], "--out", str(out)], check=True,
                    capture_output=True, timeout=300)
     mesh = read_mesh(out, dim=None)
-    assert mesh.cells.shape[0] > 10 and mesh.cell_type == ("tet4" if script.parent.name == "triaxial" else "quad4")
+    three_d = script.parent.name in ("triaxial", "aggregate_3d")
+    assert mesh.cells.shape[0] > 10 and mesh.cell_type == ("tet4" if three_d else "quad4")
 
 
 def readme_snippets() -> list[str]:

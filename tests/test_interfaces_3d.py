@@ -156,3 +156,54 @@ def test_drive_takes_3d_jump_paths_and_reduces_to_2d(tmp_path):
     np.testing.assert_allclose(d3["T_t2"], s * np.asarray(d2["T_t"]), rtol=1e-9, atol=1e-9 * scale)
     np.testing.assert_allclose(d3["T_n"], d2["T_n"], rtol=1e-9, atol=1e-9 * scale)
     np.testing.assert_allclose(d3["c"], d2["c"], rtol=1e-12)
+
+
+def test_grain_aggregate_boundaries_split_every_grain_off(tmp_path):
+    """rockfrac.mesh.aggregate: Voronoi grains of a tetrahedral box; where = 'boundaries' selects
+    exactly the faces between two grains, and splitting them leaves no node shared by two grains
+    while each grain's cells stay joined where they share a face (a grain resolved on the mesh may
+    touch itself only along an edge: that joint is cut, as the insertion rule says)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from rockfrac.mesh.aggregate import grain_box
+    from rockfrac.mesh.interfaces import region_labels
+
+    m = read_mesh(grain_box(tmp_path / "g.msh", (0.05, 0.05, 0.1), (4, 4, 8), n_grains=6, seed=3), dim=3)
+    assert m.cell_type == "tet4" and m.check() == [] and len(m.regions) == 6
+    assert sum(len(v) for v in m.regions.values()) == len(m.cells) == 6 * 4 * 4 * 8
+    for name in ("left", "right", "front", "back", "bottom", "top"):
+        assert on_boundary(m, m.face_sets[name]).all()
+    label = region_labels(m)
+    sel = i3.faces_on_region_boundaries(m)
+    f = i3.internal_faces(m)
+    assert sel.sum() > 0 and np.all(label[f.cells[sel, 0]] != label[f.cells[sel, 1]])
+    assert np.all(label[f.cells[~sel, 0]] == label[f.cells[~sel, 1]])
+    split = i3.insert_faces(m, sel)
+    owner = np.full(split.n_nodes, -1)
+    for g in range(6):
+        nodes = np.unique(split.cells[label == g])
+        assert np.all(owner[nodes] == -1)  # no node of another grain
+        owner[nodes] = g
+        # the grain's pieces after the split (cells sharing a node) are its face-connected pieces
+        cells = np.flatnonzero(label == g)
+        inc = sp.csr_matrix((np.ones(cells.size * 4), (np.repeat(np.arange(cells.size), 4),
+                                                        split.cells[cells].ravel())), shape=(cells.size, split.n_nodes))
+        inside = (label[f.cells[:, 0]] == g) & (label[f.cells[:, 1]] == g)
+        local = np.full(len(m.cells), -1)
+        local[cells] = np.arange(cells.size)
+        pairs = local[f.cells[inside]]
+        faces_graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(cells.size,) * 2)
+        assert (connected_components(inc @ inc.T, directed=False)[0]
+                == connected_components(faces_graph, directed=False)[0])
+
+
+def test_boundaries_in_2d_are_the_edges_between_regions(tmp_path):
+    """where = 'boundaries' on the 2D grains specimen is where = 'between' its two regions."""
+    from rockfrac.mesh import interfaces as itf
+    from rockfrac.mesh.grains import block_with_inclusion
+
+    m = block_with_inclusion(0.04, 0.08, 8, 16, (0.01, 0.02, 0.03, 0.05))
+    sel = itf.edges_on_region_boundaries(m)
+    assert sel.sum() == 2 * (4 + 6)  # the inclusion's perimeter: 4 + 6 cells a side
+    np.testing.assert_array_equal(sel, itf.edges_between(m, "weak", "bulk"))

@@ -312,3 +312,39 @@ def test_tiny_systems_are_factorized_densely_with_the_sparse_answer(name):
         solver.factorize(sp.csr_matrix(np.array([[1.0, np.nan], [0.0, 1.0]])))
     big = elastic_tangent(8)  # 162 rows: above the threshold
     assert big.shape[0] > linear.DENSE_UP_TO and type(solver.factorize(big)).__name__ != "_DenseLU"
+
+
+def test_auto_in_3d_takes_amg_from_its_size_and_hands_over_to_the_direct_backend(systems):
+    """'auto': a 3D model of AMG_FROM_3D dofs or more without multipliers gets GMRES + AMG (six
+    rigid-body modes), a smaller one, a 2D one or one with RP multipliers the direct backend; at the
+    first failure of GMRES the direct backend solves, the same iteration and from then on."""
+    pytest.importorskip("pyamg")
+    direct = linear.make_solver("auto").name
+    x3 = np.random.default_rng(0).uniform(size=(10, 3))
+    big = linear.AMG_FROM_3D
+    assert isinstance(linear.make_solver("auto", x3, big), linear.Handover)
+    assert linear.make_solver("auto", x3, big - 1).name == direct
+    assert linear.make_solver("auto", x3, big, multipliers=True).name == direct
+    assert linear.make_solver("auto", x3[:, :2], 10 * big).name == direct
+    # the rigid-body modes: a rigid motion has no strain, so K B = 0 on an unconstrained elastic body
+    from rockfrac.elements.solid import ElasticSolid
+    from rockfrac.fem.reference import HEX8
+    from rockfrac.mesh import hex_specimen
+
+    m = hex_specimen(1.0, 2.0, 1.5, 2, 3, 2)
+    k = sp.csr_matrix(sp.block_diag([sp.csr_matrix(ke) for ke in ElasticSolid(m.nodes, m.cells, HEX8, 1e9, 0.3).ke]))
+    gather = sp.csr_matrix((np.ones(24 * len(m.cells)), ((3 * m.cells[:, :, None] + np.arange(3)).ravel(),
+                                                         np.arange(24 * len(m.cells)))),
+                           shape=(3 * m.n_nodes, 24 * len(m.cells)))
+    kg = gather @ k @ gather.T
+    modes = linear.rigid_modes_3d(m.nodes)
+    assert np.abs(kg @ modes).max() <= 1e-9 * abs(kg).max()
+    assert np.linalg.matrix_rank(modes) == 6
+    # handover on a saddle-point tangent GMRES cannot solve
+    a = systems["rp rigid"]
+    b = np.random.default_rng(4).standard_normal(a.shape[0])
+    solver = linear.Handover(linear.make_solver("gmres-amg"), linear.SuperLU())
+    x = solver.solve(a, b)
+    assert "GMRES did not converge" in solver.failed
+    assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
+    assert solver.factorize(a).solve(b) == pytest.approx(x, rel=1e-12, abs=1e-12 * np.abs(x).max())

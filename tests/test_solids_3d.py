@@ -194,11 +194,9 @@ BILINEAR = {"form": "ep", "kn": 1e13, "kt": 1e13, "law": "bilinear", "sigma_c": 
 
 @pytest.mark.parametrize("section,key", [
     ({"cohesive": {"where": "all", "integration": "implex", **BILINEAR}},
-     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
-    ({"cohesive": {"where": "all", "viscosity": 1e-3, **BILINEAR}},
-     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
+     r"\[cohesive\] \(cohesive 1\): integration = 'implex' and \[solver\] fallback = 'implex' are 2D only"),
     ({"cohesive": {"where": "all", **BILINEAR}, "solver": {"fallback": "implex"}},
-     r"\[cohesive\] \(cohesive 1\): integration = 'implex', viscosity and \[solver\] fallback"),
+     r"\[cohesive\] \(cohesive 1\): integration = 'implex' and \[solver\] fallback = 'implex' are 2D only"),
     ({"cohesive": {"where": "curves", "curves": ["side"], **BILINEAR}},
      r"\[cohesive\] where = 'curves' is for 2D meshes; this one is 3D"),
     ({"embedded": {"c_p": 1e6, "c_r": 0.0, "phi_p": 0.5, "phi_r": 0.0, "psi_p": 0.1, "alpha_c": 500.0,

@@ -168,3 +168,41 @@ def test_viscous_keys_are_checked(edit, expected):
     with pytest.raises(CaseError) as err:
         parse_case(d, "c.toml")
     assert expected in str(err.value) and "c.toml" in str(err.value)
+
+
+def test_viscous_3d_surface_tangent_matches_finite_differences(tmp_path):
+    """The Duvaut-Lions update of 3D interfaces (the jointed triaxial cylinder, sliding): ke against
+    central differences of fe for an oblique increment (along the strike and the dip), a in (0, 1)."""
+    root = Path(__file__).resolve().parents[1] / "examples" / "rock_tests" / "triaxial"
+    d = tomllib.loads((root / "joint.toml").read_text())
+    d["mesh"]["file"] = str(root / d["mesh"]["file"])
+    d["cohesive"]["viscosity"] = 1e-3
+    d["stages"][1].update(steps=30, displacement={"top": {"z": -3e-4}})
+    d["output"] = {"picture": False, "points": False}
+    s = run_case(parse_case(d, "joint.toml"), tmp_path / "o")
+    assert s.result.completed
+    g = next(g for g in s.built.model.groups if g.kind == "cohesive")
+    assert g.dim == 3 and g.any_plastic() and g.viscous_energy() > 0.0
+    u0 = s.result.u.copy()
+    u1 = u0.copy()
+    plus = g.points.dofs[:, 3:]
+    u1[plus[:, 0]] += 3e-10  # along x (down the dip's horizontal part) and y (the strike)
+    u1[plus[:, 1]] += 2e-10
+    u1[plus[:, 2]] -= 1e-10
+    g.set_step("load", 1e-3)
+    assert 0.2 < g.blend() < 0.8
+    g.begin_step()
+    ev = g.evaluate(u1, u0)
+    assert ev.ok and np.all(g.trial[:, g.mode] == 1.0)
+    h = 1e-14
+    for i in range(0, g.points.n, 7):
+        for j, dof in enumerate(g.points.dofs[i]):
+            up, um = u1.copy(), u1.copy()
+            up[dof] += h
+            um[dof] -= h
+            g.begin_step()
+            fp = g.evaluate(up, u0).fe[i].copy()
+            g.begin_step()
+            fm = g.evaluate(um, u0).fe[i].copy()
+            fd = (fp - fm) / (2 * h)
+            assert np.allclose(ev.ke[i][:, j], fd, rtol=1e-5, atol=1e-6 * np.abs(ev.ke[i]).max())

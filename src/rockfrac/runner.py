@@ -37,7 +37,7 @@ from rockfrac.output.observers import (
     VtkSeriesWriter,
     position_from_arrays,
 )
-from rockfrac.solve.linear import make_solver
+from rockfrac.solve.linear import Handover, make_solver
 from rockfrac.solve.newton import NewtonOptions
 from rockfrac.solve.stepping import Position, RunResult, StepInfo, SteppingOptions, run_stages
 from rockfrac.solve.stop import stop_on_signals
@@ -271,7 +271,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                                    force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),
                                    should_stop=request)
-            result = run_stages(built.model, built.stages, make_solver(sol.linear), newton, stepping, on_step, log,
+            solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
+                                 any(g.n_extra for g in built.model.groups))
+            log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
+            result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                                 start=start, should_stop=request, u0=built.program.u0, f0=built.program.f0)
     except KeyboardInterrupt:
         log(f"end: interrupted (repeated SIGINT) after step {run['last']}; every converged step is kept")
@@ -295,6 +298,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         return RunSummary(result, out, wall, peak, run["iters"], built, warnings,
                           stop_signal=request.reason, exit_code=request.exit_code)
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
+    if isinstance(solver, Handover) and solver.failed:
+        log(f"linear solver: {solver.first.name} failed ({solver.failed}); {solver.then.name} solved from then on")
     if history.viscous:
         total = history.dissipated()
         log(f"viscous regularisation: D_viscous = {history.viscous_dissipated():.6g} of D_dissipated = {total:.6g} "
@@ -306,9 +311,12 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             from rockfrac.output.plots import magnification
 
             mag = magnification(built, result.u)
+            view = "3d" if built.mesh.dim == 3 and case.mesh.kind.value != "specimen" else "plane"
             cracks = save_crack_map(out / "crack_map.png", step_output(built, result.u), mag,
-                                    title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}")
-            log(f"crack_map.png: step {result.steps}, {cracks.opening.size} crack segments, deformed x{mag:g}")
+                                    title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}",
+                                    view=view)
+            what = "crack segments" if view == "plane" else "yielded interface cells"
+            log(f"crack_map.png: step {result.steps}, {cracks.opening.size} {what}, deformed x{mag:g}")
     finally:
         log.close()
     return RunSummary(result, out, wall, peak, run["iters"], built, warnings)

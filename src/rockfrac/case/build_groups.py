@@ -91,9 +91,9 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     law: TractionLaw | Law3D = planar
     if mesh.dim == 3:
         key = f"[cohesive] ({name})"
-        if section.integration != "implicit" or section.viscosity or fallback != "none":
-            raise CaseError(f"{path}: {key}: integration = 'implex', viscosity and [solver] fallback = 'implex' "
-                            "are 2D only; 3D surfaces are integrated implicitly")
+        if section.integration != "implicit" or fallback != "none":
+            raise CaseError(f"{path}: {key}: integration = 'implex' and [solver] fallback = 'implex' are 2D only; "
+                            "3D surfaces are integrated implicitly (or with [cohesive] viscosity)")
         try:
             law = Law3D(planar)
         except ValueError as err:

@@ -100,6 +100,8 @@ def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.nd
             mask = itf.edges_within(mesh, regions[0])
         elif c.where is Placement.surfaces:
             raise CaseError(f"{path}: {key} where = 'surfaces' is for 3D meshes; in 2D use where = 'curves'")
+        elif c.where is Placement.boundaries:
+            mask = itf.edges_on_region_boundaries(mesh)
         elif c.where is Placement.curves:
             curves = given(c.curves, f"{key} curves")
             require(curves, mesh.edge_sets, "curve group", f"{key} curves", path)
@@ -147,6 +149,8 @@ def _insert_faces(sets: list, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndar
             names = given(c.surfaces, f"{key} surfaces")
             require(names, mesh.face_sets, "surface group", f"{key} surfaces", path)
             mask = i3.faces_on(mesh, np.vstack([mesh.face_sets[n] for n in names]))
+        elif c.where is Placement.boundaries:
+            mask = i3.faces_on_region_boundaries(mesh)
         else:
             mask = i3.all_faces(mesh)
         idx = np.flatnonzero(mask)

@@ -33,6 +33,7 @@ class Placement(str, Enum):
     within = "within"
     curves = "curves"
     surfaces = "surfaces"
+    boundaries = "boundaries"
     all = "all"
 
 
@@ -45,7 +46,8 @@ class CohesiveCommon(_Section):
     form: CohesiveForm = Field(strict=False, description="'ep' (elasto-plastic, penalty kn, kt) or 'rp' "
                                "(rigid-plastic, augmented Lagrange multipliers)")
     where: Placement = Field(Placement.crack, strict=False, description="'crack' (the specimen's), 'between' (two "
-                             "regions), 'within' (a region), 'curves' (named curves, 2D), 'surfaces' (named surfaces, 3D) or 'all'")
+                             "regions), 'within' (a region), 'curves' (named curves, 2D), 'surfaces' (named surfaces, 3D), "
+                             "'boundaries' (between any two different regions: every grain boundary) or 'all'")
     regions: list[str] | None = Field(None, description="between: two regions (the first is the minus side); "
                                       "within: one region")
     curves: list[str] | None = Field(None, description="curves: names of curve groups (edge sets)")

@@ -223,9 +223,8 @@ class CohesiveEP(_CohesiveGroup):
         if not viscosity >= 0.0 or (viscosity > 0.0 and integration != "implicit"):
             raise ValueError(f"viscosity must be >= 0 and regularises the implicit update only (got {viscosity!r} "
                              f"with integration {integration!r})")
-        if points.dim == 3 and (integration != "implicit" or viscosity > 0.0):
-            raise ValueError("IMPL-EX integration and viscous regularisation are 2D only; 3D surfaces are "
-                             "integrated implicitly")
+        if points.dim == 3 and integration != "implicit":
+            raise ValueError("IMPL-EX integration is 2D only; 3D surfaces are integrated implicitly")
         super().__init__(points, law, name=name)
         self.dofs = points.dofs
         d = self.dim

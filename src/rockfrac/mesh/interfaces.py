@@ -92,6 +92,21 @@ def _region_mask(mesh: Mesh, region: Region) -> np.ndarray:
     return mask
 
 
+def region_labels(mesh: Mesh) -> np.ndarray:
+    """A label per cell (n_cells,): the index of its first region in ``mesh.regions`` (-1: none)."""
+    label = np.full(mesh.cells.shape[0], -1, dtype=np.int64)
+    for k, cells in reversed(list(enumerate(mesh.regions.values()))):
+        label[np.asarray(cells, dtype=np.int64)] = k
+    return label
+
+
+def edges_on_region_boundaries(mesh: Mesh) -> np.ndarray:
+    """Internal edges whose two cells lie in different regions (every grain boundary at once)."""
+    label = region_labels(mesh)
+    c = internal_edges(mesh).cells
+    return label[c[:, 0]] != label[c[:, 1]]
+
+
 def all_edges(mesh: Mesh) -> np.ndarray:
     """Every internal edge (a fully fragmentable mesh)."""
     return np.ones(internal_edges(mesh).edges.shape[0], dtype=bool)

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from rockfrac.mesh.interfaces import _region_mask, _selected_indices, _split_nodes
+from rockfrac.mesh.interfaces import _region_mask, _selected_indices, _split_nodes, region_labels
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import CELL_FACES, same_nodes
 
@@ -59,6 +59,13 @@ def internal_faces(mesh: Mesh) -> InternalFaces:
 def all_faces(mesh: Mesh) -> np.ndarray:
     """Every internal face (a fully fragmentable body)."""
     return np.ones(internal_faces(mesh).faces.shape[0], dtype=bool)
+
+
+def faces_on_region_boundaries(mesh: Mesh) -> np.ndarray:
+    """Internal faces whose two cells lie in different regions (every grain boundary at once)."""
+    label = region_labels(mesh)
+    c = internal_faces(mesh).cells
+    return label[c[:, 0]] != label[c[:, 1]]
 
 
 def faces_within(mesh: Mesh, region) -> np.ndarray:

@@ -278,7 +278,7 @@ def cylinder(path: str | Path, diameter: float = 0.05, height: float = 0.1, elem
     layers = faces.pop("layer")
     if joint_layer is not None:
         faces["joint"] = layers[joint_layer]
-    return _write_tets(path, nodes, tets, faces,
+    return write_tets(path, nodes, tets, faces,
                        {"centre_bottom": int(np.argmin(np.linalg.norm(xy, axis=1))),
                         "rim_bottom": int(np.argmin(np.linalg.norm(xy - [r, 0.0], axis=1)))})
 
@@ -321,19 +321,25 @@ def _layered_prisms(xy: np.ndarray, tri: np.ndarray, z: np.ndarray) -> tuple[np.
                           "layer": layers}
 
 
-def _write_tets(path: str | Path, nodes: np.ndarray, tets: np.ndarray, faces: dict, points: dict) -> Path:
-    """Write tetrahedra (region rock), named triangle faces and named single nodes as a Gmsh .msh file."""
+def write_tets(path: str | Path, nodes: np.ndarray, tets: np.ndarray, faces: dict, points: dict,
+               regions: dict[str, np.ndarray] | None = None) -> Path:
+    """Write tetrahedra (each region a physical volume; default one region rock), named triangle
+    faces and named single nodes as a Gmsh .msh file."""
     import gmsh
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    regions = regions or {"rock": np.arange(len(tets))}
     with gmsh_session("rockfrac_tets"):
         model = gmsh.model
-        model.addDiscreteEntity(3, 1)
-        model.mesh.addNodes(3, 1, np.arange(1, len(nodes) + 1), nodes.ravel())
-        model.mesh.addElementsByType(1, 4, np.arange(1, len(tets) + 1), (tets + 1).ravel())
-        model.addPhysicalGroup(3, [1], name="rock")
-        tag = len(tets) + 1
+        tag = 1
+        for k, (name, cells) in enumerate(regions.items()):
+            model.addDiscreteEntity(3, k + 1)
+            if k == 0:
+                model.mesh.addNodes(3, 1, np.arange(1, len(nodes) + 1), nodes.ravel())
+            model.mesh.addElementsByType(k + 1, 4, np.arange(tag, tag + len(cells)), (tets[cells] + 1).ravel())
+            tag += len(cells)
+            model.addPhysicalGroup(3, [k + 1], name=name)
         for k, (name, tri) in enumerate(faces.items()):
             model.addDiscreteEntity(2, k + 1)
             model.mesh.addElementsByType(k + 1, 2, np.arange(tag, tag + len(tri)), (tri + 1).ravel())

@@ -3,7 +3,8 @@ open cracks (cohesive interfaces and embedded segments) drawn over them, coloure
 
 Works on the same arrays as the ParaView output (`rockfrac.output.vtk.StepFields`), vectorized
 with matplotlib collections, so a mesh of 1e5 cells draws in seconds. Hexahedra are drawn by their
-z = 0 face (plane strain).
+z = 0 face (plane strain). A general 3D body (``view="3d"``) is drawn in perspective: its deformed
+boundary as a light wireframe and the centres of its yielded interface cells coloured by |jump|.
 """
 
 from __future__ import annotations
@@ -97,14 +98,63 @@ def draw_crack_map(ax, fields: StepFields, magnification: float = 1.0, cell_fiel
     return cracks
 
 
+def yielded_interfaces_3d(fields: StepFields, magnification: float) -> CrackLines:
+    """Centres (k, 1, 3) [m] of the deformed interface cells of a 3D body that have yielded, with the
+    norms of their jumps (k,) [m]."""
+    b = _block(fields, CellKind.INTERFACE)
+    if b is None:
+        return CrackLines(np.zeros((0, 1, 3)), np.zeros(0))
+    x = fields.points + magnification * fields.point_data["displacement"]
+    conn = fields.cells[b][1]
+    jump = fields.cell_data["jump"][b]
+    plastic = np.abs(fields.cell_data["plastic_jump"][b]).max(axis=1) > 0.0
+    keep = np.isfinite(jump).all(axis=1) & (plastic | (fields.cell_data["state"][b] == int(CrackState.PLASTIC)))
+    return CrackLines(x[conn[keep]].mean(axis=1)[:, None, :], np.linalg.norm(jump[keep], axis=1))
+
+
+def draw_crack_map_3d(ax, fields: StepFields, magnification: float = 1.0, title: str = "") -> CrackLines:
+    """A 3D axis: the deformed body's outer edges (its bounding wireframe) and the yielded interface
+    cells' centres coloured by |jump| [mm]; returns them."""
+    x = (fields.points + magnification * fields.point_data["displacement"]) * 1e3
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    for i in range(3):  # the bounding box's twelve edges
+        for a in (lo, hi):
+            for b in (lo, hi):
+                j, k = (i + 1) % 3, (i + 2) % 3
+                p, q = np.empty(3), np.empty(3)
+                p[i], q[i] = lo[i], hi[i]
+                p[j] = q[j] = a[j]
+                p[k] = q[k] = b[k]
+                ax.plot(*zip(p, q), color="0.7", linewidth=0.6)
+    cracks = yielded_interfaces_3d(fields, magnification)
+    if cracks.opening.size:
+        c = cracks.segments[:, 0] * 1e3
+        dots = ax.scatter(c[:, 0], c[:, 1], c[:, 2], c=cracks.opening * 1e3, cmap="plasma", s=6)
+        ax.figure.colorbar(dots, ax=ax, label="|jump| [mm]", shrink=0.6)
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("y [mm]")
+    ax.set_zlabel("z [mm]")
+    ax.set_box_aspect(tuple(np.maximum(hi - lo, 1e-9 * max(hi - lo))))
+    ax.set_title(title or f"deformed x{magnification:g}, {cracks.opening.size} yielded interface cells",
+                 fontsize=9)
+    return cracks
+
+
 def save_crack_map(path, fields: StepFields, magnification: float, cell_field: str = "gamma",
-                   title: str = "") -> CrackLines:
-    """Write the crack map of one step to ``path`` (PNG); returns the cracks drawn."""
+                   title: str = "", view: str = "plane") -> CrackLines:
+    """Write the crack map of one step to ``path`` (PNG): ``view`` "plane" (2D, or a plane-strain
+    slab's z = 0 face) or "3d" (a general 3D body); returns the cracks drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if view == "3d":
+        fig = plt.figure(figsize=(7.0, 8.0))
+        cracks = draw_crack_map_3d(fig.add_subplot(projection="3d"), fields, magnification, title)
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+        plt.close(fig)
+        return cracks
     fig, ax = plt.subplots(figsize=(6.0, 8.0))
     cracks = draw_crack_map(ax, fields, magnification, cell_field, title)
     fig.savefig(path, dpi=150, bbox_inches="tight")

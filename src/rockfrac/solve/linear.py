@@ -7,7 +7,9 @@ needs two right-hand sides per iteration). A backend that cannot solve raises ``
 Backends, fastest first on this project's tangents (benchmarks/README.md, "Linear solvers"):
 PARDISO (MKL, pypardiso), MUMPS (python-mumps, needs Debian's libmumps), SciPy's SuperLU, and
 GMRES preconditioned by smoothed-aggregation AMG (pyamg). The optional ones are used when they
-import; ``auto`` picks the first installed of ``PREFERENCE``.
+import; ``auto`` picks the first installed of ``PREFERENCE`` (GMRES + AMG for a large 3D model:
+``make_solver``). The contract and SuperLU live in :mod:`rockfrac.solve.backend`, the iterative
+backend in :mod:`rockfrac.solve.iterative`; both are re-exported here.
 """
 
 from __future__ import annotations
@@ -15,91 +17,22 @@ from __future__ import annotations
 import glob
 import os
 import sys
-from typing import Any, Protocol
+from typing import Any
 
-import numba as nb
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from rockfrac.fem.assembly import lower_bound
-
-
-DENSE_UP_TO = 128  # rows up to which the direct backends factorize densely (crossover ~170: "Tiny systems")
-
-
-class SolverFailed(RuntimeError):
-    """A backend could not solve: a failed factorization or a Krylov method that did not converge."""
-
-
-class Factorization(Protocol):
-    def solve(self, b: np.ndarray) -> np.ndarray: ...
-
-
-class LinearSolver(Protocol):
-    name: str
-
-    def factorize(self, a: sp.csr_matrix) -> Factorization: ...
-
-    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
-
-
-class _DenseLU:
-    """LU with partial pivoting of a small matrix held dense (LAPACK getrf / getrs), and one step
-    of iterative refinement per solve (as PARDISO does): the RP saddle points mix entries of 1e7
-    and 1e-2, where plain LU leaves an error that costs Newton an extra iteration."""
-
-    def __init__(self, a: sp.csr_matrix):
-        from scipy.linalg import lapack
-
-        self._a = a.toarray()
-        if not np.isfinite(self._a).all():
-            raise SolverFailed("matrix has non-finite entries")
-        self._lu, self._piv, info = lapack.dgetrf(self._a)
-        if info > 0:
-            raise SolverFailed(f"matrix is singular (dense LU: zero pivot in column {info})")
-        self._getrs = lapack.dgetrs
-
-    def _substitute(self, b: np.ndarray) -> np.ndarray:
-        x, info = self._getrs(self._lu, self._piv, b)
-        if info != 0:
-            raise SolverFailed(f"dense LU solve failed (LAPACK info {info})")
-        return x
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        x = self._substitute(b)
-        return x + self._substitute(b - self._a @ x)
-
-
-class _Backend:
-    """``solve`` as a factorization used once; systems of at most ``dense_up_to`` rows are
-    factorized densely (LAPACK), which every direct backend shares: on the paper's 16-24-dof
-    systems a sparse solver's set-up per call is 20x the arithmetic (benchmarks/README.md, "Tiny
-    systems"). 0 switches it off."""
-
-    name = ""
-    dense_up_to = 0
-
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
-        if a.shape[0] <= self.dense_up_to:
-            return _DenseLU(a)
-        return self._factorize(a)
-
-    def _factorize(self, a: sp.csr_matrix) -> Factorization:
-        raise NotImplementedError
-
-    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        return self.factorize(a).solve(b)
-
-
-class SuperLU(_Backend):
-    """SciPy's SuperLU direct solver (always available)."""
-
-    name = "superlu"
-    dense_up_to = DENSE_UP_TO
-
-    def _factorize(self, a: sp.csr_matrix) -> Factorization:
-        return spla.splu(a.tocsc())
+from rockfrac.solve.backend import (  # noqa: F401 (the contract and SuperLU, re-exported)
+    DENSE_UP_TO,
+    Factorization,
+    LinearSolver,
+    SolverFailed,
+    SuperLU,
+    _Backend,
+    _DenseLU,
+    is_symmetric,
+)
+from rockfrac.solve.iterative import Handover, KrylovAMG, rigid_modes_3d  # noqa: F401 (re-exported)
 
 
 class _Pattern:
@@ -421,71 +354,6 @@ class Mumps(_Backend):
         return _MumpsFactor(self._ctx, self.generation, self)
 
 
-class _KrylovSolve:
-    def __init__(self, a: sp.csr_matrix, precondition, rtol: float, maxiter: int, restart: int):
-        self._a, self._m = a, precondition
-        self._rtol, self._maxiter, self._restart = rtol, maxiter, restart
-        self.iterations = 0
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        norm_b = float(np.linalg.norm(b))
-        if norm_b == 0.0:
-            return np.zeros_like(b)
-        count = [0]
-
-        def counter(_):
-            count[0] += 1
-
-        with np.errstate(all="ignore"):
-            x, info = spla.gmres(self._a, b, M=self._m, rtol=self._rtol, atol=0.0, restart=self._restart,
-                                 maxiter=self._maxiter, callback=counter, callback_type="pr_norm")
-        self.iterations = count[0]
-        res = float(np.linalg.norm(b - self._a @ x)) / norm_b if np.all(np.isfinite(x)) else np.inf
-        if info != 0 or not res <= 10 * self._rtol:
-            raise SolverFailed(f"GMRES did not converge: relative residual {res:.2e} after "
-                               f"{count[0]} iterations (tolerance {self._rtol:.0e})")
-        return x
-
-
-class KrylovAMG(_Backend):
-    """Restarted GMRES preconditioned by one V-cycle of smoothed-aggregation AMG (pyamg).
-
-    The AMG works on 2 x 2 nodal blocks with the two rigid translations as near-null space (the
-    engine numbers two displacement components per node first; a matrix of odd size falls back to
-    scalar aggregation). Iterative: relative residual 1e-11, far below Newton's 1e-8, or
-    ``SolverFailed``. Saddle-point tangents (the RP CSE's multiplier rows) defeat it.
-    """
-
-    name = "gmres-amg"
-    rtol = 1e-11
-    restart = 60
-    maxiter = 10  # restarts: at most 600 GMRES iterations
-    block = 2  # displacement components per node
-
-    def __init__(self) -> None:
-        import pyamg  # noqa: F401
-
-    def _factorize(self, a: sp.csr_matrix) -> Factorization:
-        import pyamg
-
-        a = sp.csr_matrix(a)
-        n, k = a.shape[0], self.block
-        try:
-            with np.errstate(all="ignore"):
-                if n % k == 0:
-                    translations = np.zeros((n, k))
-                    for c in range(k):
-                        translations[c::k, c] = 1.0
-                    ml = pyamg.smoothed_aggregation_solver(a.tobsr(blocksize=(k, k)), B=translations,
-                                                           symmetry="nonsymmetric", max_coarse=500)
-                else:
-                    ml = pyamg.smoothed_aggregation_solver(a, symmetry="nonsymmetric", max_coarse=500)
-            precondition = ml.aspreconditioner(cycle="V")
-        except Exception as err:  # noqa: BLE001 -- pyamg raises assorted errors on bad matrices
-            raise SolverFailed(f"AMG set-up failed: {err}") from err
-        return _KrylovSolve(a, precondition, self.rtol, self.maxiter, self.restart)
-
-
 SOLVERS = {"pardiso": Pardiso, "mumps": Mumps, "superlu": SuperLU, "gmres-amg": KrylovAMG}
 
 
@@ -507,50 +375,29 @@ def available() -> list[str]:
 PREFERENCE = ("pardiso", "mumps", "superlu")
 
 
-def make_solver(name: str) -> LinearSolver:
-    """Backend by name ('auto': the fastest installed); raises ValueError listing the available ones."""
+# 'auto' on a 3D model without multiplier dofs: GMRES + AMG from this many dofs, the direct backend
+# below (benchmarks/README.md, "3D scaling": PARDISO's 3D fill grows faster than AMG's work)
+AMG_FROM_3D = 100_000
+
+
+def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 0,
+                multipliers: bool = False) -> LinearSolver:
+    """Backend by name ('auto': the fastest installed); raises ValueError listing the available ones.
+    coordinates: the mesh's nodes, which the iterative backend uses for its near-null space in 3D.
+    'auto' on a 3D model of at least AMG_FROM_3D dofs without multipliers (no RP surfaces): GMRES +
+    AMG, handing over to the direct backend at its first failure."""
     if name == "auto":
         installed = available()
-        return SOLVERS[next(n for n in PREFERENCE if n in installed)]()
+        direct = SOLVERS[next(n for n in PREFERENCE if n in installed)]()
+        three_d = coordinates is not None and coordinates.shape[1] == 3
+        if three_d and n_dofs >= AMG_FROM_3D and not multipliers and "gmres-amg" in installed:
+            return Handover(KrylovAMG(coordinates), direct)
+        return direct
     if name not in SOLVERS:
         raise ValueError(f"unknown linear solver {name!r}; known: {sorted(SOLVERS)}")
     try:
+        if name == "gmres-amg":
+            return KrylovAMG(coordinates)
         return SOLVERS[name]()
     except ImportError as err:
         raise ValueError(f"linear solver {name!r} is not installed here ({err}); available: {available()}") from None
-
-
-@nb.njit(cache=True)
-def is_symmetric(indptr, indices, data, rel_tol):
-    """|a_ij - a_ji| <= rel_tol max |a| for every entry of a CSR matrix with sorted rows (a missing
-    mirror entry counts as 0), all entries finite and not all zero; stops at the first that is not."""
-    n = indptr.shape[0] - 1
-    scale = 0.0
-    for q in range(data.shape[0]):
-        v = abs(data[q])
-        if not v < np.inf:
-            return False
-        if v > scale:
-            scale = v
-    if scale == 0.0:
-        return False
-    tol = rel_tol * scale
-    for i in range(n):
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if j <= i:
-                continue
-            lo = lower_bound(indices, indptr[j], indptr[j + 1], i)  # a_ji by bisection in row j
-            mirror = data[lo] if lo < indptr[j + 1] and indices[lo] == i else 0.0
-            if not abs(data[q] - mirror) <= tol:
-                return False
-    # entries below the diagonal without a mirror above
-    for i in range(n):
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if j >= i:
-                break
-            lo = lower_bound(indices, indptr[j], indptr[j + 1], i)
-            if not (lo < indptr[j + 1] and indices[lo] == i) and not abs(data[q]) <= tol:
-                return False
-    return True

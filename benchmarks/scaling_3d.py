@@ -1,0 +1,187 @@
+"""3D scaling: set-up, assembly, linear solve and memory from 1e4 to 1e6 dofs, direct and iterative.
+
+One command (``.venv/bin/python benchmarks/scaling_3d.py``, about 20 minutes): an elastic unit box
+of n x n x n cells, hex8 or tet4 (each hexahedron split into six tetrahedra by Gmsh), on rollers
+(x = 0, y = 0, z = 0 held normally) under a pressure on the top, run as a rockfrac case (one load
+step: the solve and Newton's check). Each (element, size, backend) runs in its own process (its own
+peak memory): "set-up" is ``build(case)`` (Gmsh read, cells, CSR pattern and slot maps, constant
+bulk matrix, stages); "solve" is every factorization and solve of the run; "assembly" is the rest
+of the run (residuals, the tangent, Dirichlet rows). Every run is checked against the closed form
+(u_z = -p z / E on the top, exact in these elements): the relative error is in the table.
+
+Backends: ``pardiso`` (MKL, the default 'auto') and ``gmres-amg`` (GMRES(60) with pyamg's smoothed
+aggregation on 3 x 3 nodal blocks and the six rigid-body modes, relative residual 1e-11).
+Options: ``--sizes 1e4 1e5 3e5 1e6``, ``--elements hex8 tet4``, ``--backends pardiso gmres-amg``,
+``--timeout`` (s per process), ``--quick`` (1e4 only, prints, writes nothing). Results go to
+``benchmarks/results/scaling_3d.json`` and the "3D scaling" table in ``benchmarks/README.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).parent
+E, NU, P = 2e10, 0.25, 1e6
+
+
+def cells_for(dofs: float) -> int:
+    """Cells per side of the box with about ``dofs`` unknowns (3 per node, (n + 1)^3 nodes)."""
+    return max(2, round((dofs / 3) ** (1 / 3)) - 1)
+
+
+def child_run(element: str, n: int, backend: str, folder: Path) -> dict:
+    from rockfrac.case.build import build
+    from rockfrac.case.schema import parse_case
+    from rockfrac.mesh import rock_tests as rt
+    from rockfrac.solve.linear import make_solver
+    from rockfrac.solve.newton import NewtonOptions
+    from rockfrac.solve.stepping import SteppingOptions, run_stages
+
+    t0 = time.perf_counter()
+    msh = rt.box(folder / "box.msh", (1.0, 1.0, 1.0), (n, n, n), element=element)
+    t_mesh = time.perf_counter() - t0
+    case = parse_case({"title": "box", "mesh": {"kind": "gmsh", "file": str(msh)}, "bulk": {"E": E, "nu": NU},
+                       "stages": [{"name": "press", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
+                                                                     "bottom": {"z": 0.0}},
+                                   "pressure": {"top": P}}], "solver": {"linear": backend}}, "box")
+    t0 = time.perf_counter()
+    built = build(case)
+    t_setup = time.perf_counter() - t0
+    inner = make_solver(backend, built.mesh.nodes)
+    timing = {"solve": 0.0, "factorizations": 0, "gmres_iterations": []}
+
+    class Timed:
+        name = inner.name
+
+        def factorize(self, a):
+            t = time.perf_counter()
+            f = inner.factorize(a)
+            timing["solve"] += time.perf_counter() - t
+            timing["factorizations"] += 1
+
+            class Solve:
+                def solve(self, b):
+                    t = time.perf_counter()
+                    x = f.solve(b)
+                    timing["solve"] += time.perf_counter() - t
+                    if hasattr(f, "iterations"):
+                        timing["gmres_iterations"].append(f.iterations)
+                    return x
+
+            return Solve()
+
+    sol = case.solver
+    newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy, force_scale=1e-6 * E)
+    state: dict = {}
+    t0 = time.perf_counter()
+    result = run_stages(built.model, built.stages, Timed(), newton, SteppingOptions(),
+                        lambda info: state.update(u=info.u, iterations=info.newton.iterations))
+    t_run = time.perf_counter() - t0
+    mesh = built.mesh
+    u = state["u"][: 3 * mesh.n_nodes].reshape(-1, 3)
+    top = mesh.node_sets["top"]
+    exact = -P * mesh.nodes[top, 2] / E
+    return {"element": element, "n": n, "backend": backend, "dofs": int(built.model.n_dofs),
+            "cells": int(mesh.cells.shape[0]), "nnz": int(built.model.pattern.nnz),
+            "completed": bool(result.completed), "newton_iterations": int(state.get("iterations", 0)),
+            "factorizations": timing["factorizations"], "gmres_iterations": timing["gmres_iterations"],
+            "mesh_s": t_mesh, "setup_s": t_setup, "solve_s": timing["solve"],
+            "assembly_s": t_run - timing["solve"], "run_s": t_run,
+            "error": float(np.abs(u[top, 2] - exact).max() / np.abs(exact).max()),
+            "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+
+
+def child(args: list[str], timeout: float) -> dict:
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([sys.executable, __file__, *args], capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"failed": f"not finished in {timeout:.0f} s (killed)"}
+    if p.returncode != 0:
+        return {"failed": (p.stderr.strip().splitlines() or [f"exit code {p.returncode}"])[-1]}
+    out = json.loads(p.stdout.strip().splitlines()[-1])
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def machine() -> dict:
+    from importlib import metadata
+
+    cpu = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                if line.startswith("model name")), platform.processor())
+    mem = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines()
+               if line.startswith("MemTotal")) / 2**20
+    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
+            "versions": {p: metadata.version(p) for p in ("numpy", "scipy", "numba", "pypardiso", "pyamg")},
+            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+            "load_before": [round(v, 2) for v in os.getloadavg()]}
+
+
+def table(rows: list[dict], info: dict) -> str:
+    head = (f"Machine: {info['cpu']}, {info['cores']} cores, {info['memory_gib']} GiB; Python {info['python']}, "
+            + ", ".join(f"{k} {v}" for k, v in info["versions"].items())
+            + f"; {info['date']}, load average before {info['load_before']}.\n\n"
+            "| element | cells | dofs | backend | set-up [s] | assembly [s] | solve [s] | factorizations "
+            "| GMRES its | peak memory [GiB] | error vs closed form |\n|---|---|---|---|---|---|---|---|---|---|---|\n")
+    lines = []
+    for r in rows:
+        if "failed" in r:
+            lines.append(f"| {r['element']} | | {r.get('target', '')} | {r['backend']} | failed: {r['failed']} "
+                         "| | | | | | |")
+            continue
+        its = "/".join(str(i) for i in r["gmres_iterations"]) or "-"
+        lines.append(f"| {r['element']} | {r['cells']} | {r['dofs']} | {r['backend']} | {r['setup_s']:.2f} | "
+                     f"{r['assembly_s']:.2f} | {r['solve_s']:.2f} | {r['factorizations']} | {its} | "
+                     f"{r['peak_gib']:.2f} | {r['error']:.1e} |")
+    return head + "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--sizes", type=float, nargs="+", default=[1e4, 1e5, 3e5, 1e6])
+    p.add_argument("--elements", nargs="+", default=["hex8", "tet4"])
+    p.add_argument("--backends", nargs="+", default=["pardiso", "gmres-amg"])
+    p.add_argument("--timeout", type=float, default=1800.0)
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--child", nargs=3, metavar=("ELEMENT", "N", "BACKEND"))
+    args = p.parse_args()
+    if args.child:
+        with tempfile.TemporaryDirectory() as tmp:
+            print(json.dumps(child_run(args.child[0], int(args.child[1]), args.child[2], Path(tmp))))
+        return
+    sizes = [1e4] if args.quick else args.sizes
+    info = machine()
+    rows: list[dict] = []
+    for element in args.elements:
+        for size in sizes:
+            for backend in args.backends:
+                r = child(["--child", element, str(cells_for(size)), backend], args.timeout)
+                r.setdefault("element", element)
+                r.setdefault("backend", backend)
+                r["target"] = size
+                rows.append(r)
+                print(json.dumps(r), flush=True)
+                if not args.quick:
+                    out = HERE / "results" / "scaling_3d.json"
+                    out.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
+                    text = (HERE / "README.md").read_text()
+                    a, b = "<!-- scaling-3d-table:start -->\n", "<!-- scaling-3d-table:end -->"
+                    if a in text and b in text:
+                        i, j = text.index(a) + len(a), text.index(b)
+                        (HERE / "README.md").write_text(text[:i] + table(rows, info) + text[j:])
+    print(table(rows, info))
+
+
+if __name__ == "__main__":
+    main()

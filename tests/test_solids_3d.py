@@ -287,3 +287,20 @@ def test_triaxial_joint_slips_at_the_closed_form_and_slides_down_the_dip(jointed
     assert down_dip.min() > 1e-5 and along_strike.max() <= 1e-9 * down_dip.min()
     np.testing.assert_allclose(np.abs(np.asarray(pts["n_z"])[last]), c, rtol=1e-12)
     assert abs(h["energy_error"][-1]) <= 1e-8 * h["W_external"][-1]
+
+
+def test_3d_crack_map_draws_the_yielded_joint(jointed, tmp_path):
+    from rockfrac.output.crack_map import save_crack_map
+    from rockfrac.output.fields import step_output
+
+    _, r, _ = jointed
+    fields = step_output(r.built, r.u)
+    cracks = save_crack_map(tmp_path / "map.png", fields, 100.0, view="3d")
+    assert (tmp_path / "map.png").stat().st_size > 10_000
+    joint = r.built.mesh.interfaces.shape[0]
+    assert cracks.opening.size == joint and joint > 40  # every joint face has slid
+    z = cracks.segments[:, 0, 2]
+    x = cracks.segments[:, 0, 0]
+    dip = math.radians(55.0)
+    # the centres lie on the (deformed) joint plane z = H/2 - x tan(dip), to the magnified slip
+    assert np.abs(z - (0.05 - x * math.tan(dip))).max() < 0.01

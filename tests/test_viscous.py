@@ -100,6 +100,21 @@ def test_viscous_passes_a_snap_back_under_load_control(tmp_path):
     assert h["W_external"][-1] == pytest.approx(GC * WIDTH + h["D_viscous"][-1], rel=1.5e-2)
 
 
+def assert_tangent_by_differences(g, ke, u1, u0, points, h):
+    """ke of the group's points against central differences of their fe, step h [m]."""
+    for i in points:
+        for j, dof in enumerate(g.points.dofs[i]):
+            up, um = u1.copy(), u1.copy()
+            up[dof] += h
+            um[dof] -= h
+            g.begin_step()
+            fp = g.evaluate(up, u0).fe[i].copy()
+            g.begin_step()
+            fm = g.evaluate(um, u0).fe[i].copy()
+            fd = (fp - fm) / (2 * h)
+            assert np.allclose(ke[i][:, j], fd, rtol=1e-5, atol=1e-6 * np.abs(ke[i]).max())
+
+
 def test_viscous_tangent_matches_finite_differences(tmp_path):
     """ke of the regularised points against central differences of fe, mid-softening, a in (0, 1)."""
     s, _ = run(tmp_path, "partial", bar(0.02, 1.2e-4, 60, 1e-5))
@@ -113,18 +128,7 @@ def test_viscous_tangent_matches_finite_differences(tmp_path):
     g.begin_step()
     ev = g.evaluate(u1, u0)
     assert ev.ok and np.any(g.trial[:, g.mode] == 1.0)
-    h = 1e-11
-    for i in range(g.points.n):
-        for j, dof in enumerate(g.points.dofs[i]):
-            up, um = u1.copy(), u1.copy()
-            up[dof] += h
-            um[dof] -= h
-            g.begin_step()
-            fp = g.evaluate(up, u0).fe[i].copy()
-            g.begin_step()
-            fm = g.evaluate(um, u0).fe[i].copy()
-            fd = (fp - fm) / (2 * h)
-            assert np.allclose(ev.ke[i][:, j], fd, rtol=1e-5, atol=1e-6 * np.abs(ev.ke[i]).max())
+    assert_tangent_by_differences(g, ev.ke, u1, u0, range(g.points.n), 1e-11)
 
 
 def test_viscous_brazilian_disc_splits_under_load_control(tmp_path):
@@ -194,15 +198,4 @@ def test_viscous_3d_surface_tangent_matches_finite_differences(tmp_path):
     g.begin_step()
     ev = g.evaluate(u1, u0)
     assert ev.ok and np.all(g.trial[:, g.mode] == 1.0)
-    h = 1e-14
-    for i in range(0, g.points.n, 7):
-        for j, dof in enumerate(g.points.dofs[i]):
-            up, um = u1.copy(), u1.copy()
-            up[dof] += h
-            um[dof] -= h
-            g.begin_step()
-            fp = g.evaluate(up, u0).fe[i].copy()
-            g.begin_step()
-            fm = g.evaluate(um, u0).fe[i].copy()
-            fd = (fp - fm) / (2 * h)
-            assert np.allclose(ev.ke[i][:, j], fd, rtol=1e-5, atol=1e-6 * np.abs(ev.ke[i]).max())
+    assert_tangent_by_differences(g, ev.ke, u1, u0, range(0, g.points.n, 7), 1e-14)

@@ -77,61 +77,19 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
 
 
 def insert_cohesive(case: Case, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndarray]]:
-    """Split the mesh along every cohesive set's edges; returns the new mesh and each set's cells."""
+    """Split the mesh along every cohesive set's edges (faces in 3D); returns the new mesh and each
+    set's interface cells."""
     sets = case.cohesive_sets
     if not sets:
         return mesh, []
     if sets[0].where is Placement.crack:  # the specimen carries its crack already
         return mesh, [np.arange(mesh.interfaces.shape[0])]
-    if mesh.dim == 3:
-        return _insert_faces(sets, mesh, path)
     from rockfrac.mesh import interfaces as itf
-
-    edges, cells, _ = itf.internal_edges(mesh)
-    chosen, minus = [], []
-    for k, c in enumerate(sets):
-        key = f"[cohesive{'' if len(sets) == 1 else f' {k + 1}'}]"
-        regions = c.regions or []
-        if c.where in (Placement.between, Placement.within):
-            require(regions, mesh.regions, "region", f"{key} regions", path)
-        if c.where is Placement.between:
-            mask = itf.edges_between(mesh, regions[0], regions[1])
-        elif c.where is Placement.within:
-            mask = itf.edges_within(mesh, regions[0])
-        elif c.where is Placement.surfaces:
-            raise CaseError(f"{path}: {key} where = 'surfaces' is for 3D meshes; in 2D use where = 'curves'")
-        elif c.where is Placement.boundaries:
-            mask = itf.edges_on_region_boundaries(mesh)
-        elif c.where is Placement.curves:
-            curves = given(c.curves, f"{key} curves")
-            require(curves, mesh.edge_sets, "curve group", f"{key} curves", path)
-            mask = itf.edges_on(mesh, np.vstack([mesh.edge_sets[n] for n in curves]))
-        else:
-            mask = itf.all_edges(mesh)
-        idx = np.flatnonzero(mask)
-        if idx.size == 0:
-            raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal edge of the mesh")
-        chosen.append(idx)
-        if c.where is Placement.between:  # the first region is the minus side
-            minus.append(itf.minus_side(mesh, idx, regions[0]))
-        else:
-            minus.append(cells[idx, 0])
-    flat = np.concatenate(chosen)
-    if np.unique(flat).size != flat.size:
-        raise CaseError(f"{path}: [cohesive]: two cohesive sets share edges; each edge can carry one surface")
-    n0 = mesh.interfaces.shape[0]
-    split = itf.insert_interfaces(mesh, flat, minus_cells=np.concatenate(minus))
-    bounds = np.cumsum([0] + [c.size for c in chosen]) + n0
-    return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
-
-
-def _insert_faces(sets: list, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndarray]]:
-    """:func:`insert_cohesive` in 3D: every set's internal faces, split at once."""
     from rockfrac.mesh import interfaces_3d as i3
 
-    faces = i3.internal_faces(mesh)
+    three_d = mesh.dim == 3
+    side = "face" if three_d else "edge"
+    pair_cells = (i3.internal_faces(mesh) if three_d else itf.internal_edges(mesh)).cells
     chosen, minus = [], []
     for k, c in enumerate(sets):
         key = f"[cohesive{'' if len(sets) == 1 else f' {k + 1}'}]"
@@ -139,28 +97,34 @@ def _insert_faces(sets: list, mesh: Mesh, path: str) -> tuple[Mesh, list[np.ndar
         if c.where in (Placement.between, Placement.within):
             require(regions, mesh.regions, "region", f"{key} regions", path)
         if c.where is Placement.between:
-            mask = i3.faces_between(mesh, regions[0], regions[1])
+            mask = (i3.faces_between if three_d else itf.edges_between)(mesh, regions[0], regions[1])
         elif c.where is Placement.within:
-            mask = i3.faces_within(mesh, regions[0])
-        elif c.where is Placement.curves:
-            raise CaseError(f"{path}: {key} where = 'curves' is for 2D meshes; this one is 3D: use where = "
-                            "'surfaces' with the names of physical surfaces")
-        elif c.where is Placement.surfaces:
-            names = given(c.surfaces, f"{key} surfaces")
-            require(names, mesh.face_sets, "surface group", f"{key} surfaces", path)
-            mask = i3.faces_on(mesh, np.vstack([mesh.face_sets[n] for n in names]))
+            mask = (i3.faces_within if three_d else itf.edges_within)(mesh, regions[0])
         elif c.where is Placement.boundaries:
-            mask = i3.faces_on_region_boundaries(mesh)
-        else:
-            mask = i3.all_faces(mesh)
+            mask = (i3.faces_on_region_boundaries if three_d else itf.edges_on_region_boundaries)(mesh)
+        elif c.where is Placement.all:
+            mask = (i3.all_faces if three_d else itf.all_edges)(mesh)
+        elif (c.where is Placement.surfaces) != three_d:
+            raise CaseError(f"{path}: {key} where = '{c.where.value}' is for {'2D' if three_d else '3D'} meshes; "
+                            f"this one is {mesh.dim}D: use where = '{'surfaces' if three_d else 'curves'}' with "
+                            f"the names of physical {'surfaces' if three_d else 'curves'}")
+        else:  # named curves (2D) or surfaces (3D)
+            names = given(c.surfaces if three_d else c.curves, f"{key} {c.where.value}")
+            groups = mesh.face_sets if three_d else mesh.edge_sets
+            require(names, groups, f"{'surface' if three_d else 'curve'} group", f"{key} {c.where.value}", path)
+            mask = (i3.faces_on if three_d else itf.edges_on)(mesh, np.vstack([groups[n] for n in names]))
         idx = np.flatnonzero(mask)
         if idx.size == 0:
-            raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal face of the mesh")
+            raise CaseError(f"{path}: {key}: where = '{c.where.value}' selects no internal {side} of the mesh")
         chosen.append(idx)
-        minus.append(i3.minus_side(mesh, idx, regions[0]) if c.where is Placement.between else faces.cells[idx, 0])
+        if c.where is Placement.between:  # the first region is the minus side
+            minus.append((i3.minus_side if three_d else itf.minus_side)(mesh, idx, regions[0]))
+        else:
+            minus.append(pair_cells[idx, 0])
     flat = np.concatenate(chosen)
     if np.unique(flat).size != flat.size:
-        raise CaseError(f"{path}: [cohesive]: two cohesive sets share faces; each face can carry one surface")
-    split = i3.insert_faces(mesh, flat, minus_cells=np.concatenate(minus))
-    bounds = np.cumsum([0] + [c.size for c in chosen])
+        raise CaseError(f"{path}: [cohesive]: two cohesive sets share {side}s; each {side} can carry one surface")
+    n0 = mesh.interfaces.shape[0]
+    split = (i3.insert_faces if three_d else itf.insert_interfaces)(mesh, flat, minus_cells=np.concatenate(minus))
+    bounds = np.cumsum([0] + [c.size for c in chosen]) + n0
     return split, [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:])]

@@ -207,6 +207,46 @@ def _split_nodes(cells: np.ndarray, labels: np.ndarray, cut: np.ndarray, n: int)
     return new_flat.reshape(cells.shape), parent
 
 
+def minus_and_plus(pair: np.ndarray, local: np.ndarray, minus_cells: np.ndarray | None,
+                   side: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The minus cell, plus cell and the side's local index in the minus cell of each selected side
+    (an edge or a face) whose two cells are ``pair`` (k, 2), local indices ``local`` (k, 2);
+    minus_cells: the wanted minus cells (default: the first of each pair)."""
+    if minus_cells is None:
+        flip = np.zeros(pair.shape[0], dtype=bool)
+    else:
+        minus_cells = np.asarray(minus_cells, dtype=np.int64).ravel()
+        if minus_cells.shape != (pair.shape[0],):
+            raise ValueError(f"minus_cells needs one cell per selected {side} ({pair.shape[0]})")
+        flip = minus_cells == pair[:, 1]
+        if np.any(~flip & (minus_cells != pair[:, 0])):
+            raise ValueError(f"a minus cell is not one of the two cells of its {side}")
+    mc, pc = np.where(flip, pair[:, 1], pair[:, 0]), np.where(flip, pair[:, 0], pair[:, 1])
+    return mc, pc, np.where(flip, local[:, 1], local[:, 0])
+
+
+def split_cut_nodes(cells: np.ndarray, labels: np.ndarray, sides: np.ndarray, n: int):
+    """New connectivity, the parent of every new node and the mask (n,) of the split nodes, for the
+    fan labels of the incidences and the selected sides' nodes ``sides`` (k, m)."""
+    cut = np.zeros(n, dtype=bool)
+    cut[sides.ravel()] = True
+    new_cells, parent = _split_nodes(cells, labels, cut, n)
+    split = np.zeros(n, dtype=bool)
+    split[parent[n:]] = True
+    return new_cells, parent, split
+
+
+def copied_node_sets(node_sets: dict[str, np.ndarray], parent: np.ndarray, n: int) -> dict[str, np.ndarray]:
+    """Node sets with the copies (nodes n.. with a parent in the set) of their nodes appended."""
+    in_parent = np.zeros(n, dtype=bool)
+    out = {}
+    for name, ids in node_sets.items():
+        in_parent[:] = False
+        in_parent[ids] = True
+        out[name] = np.concatenate([ids, n + np.flatnonzero(in_parent[parent[n:]])])
+    return out
+
+
 def _follow_edges(old: np.ndarray, new: np.ndarray, pairs: np.ndarray, n: int,
                   split: np.ndarray) -> np.ndarray:
     """Renumber edges (k, 2) a -> b with the copies of the cell on their left (the cell with
@@ -256,25 +296,10 @@ def insert_interfaces(
     s = _selected_indices(selected, ie.edges.shape[0])
     cells, n = mesh.cells, mesh.n_nodes
     pair, local = ie.cells[s], ie.local[s]
-    if minus_cells is None:
-        flip = np.zeros(s.size, dtype=bool)
-    else:
-        minus_cells = np.asarray(minus_cells, dtype=np.int64).ravel()
-        if minus_cells.shape != s.shape:
-            raise ValueError(f"minus_cells needs one cell per selected edge ({s.size})")
-        flip = minus_cells == pair[:, 1]
-        if np.any(~flip & (minus_cells != pair[:, 0])):
-            raise ValueError("a minus cell is not one of the two cells of its edge")
-    mc, pc = np.where(flip, pair[:, 1], pair[:, 0]), np.where(flip, pair[:, 0], pair[:, 1])
-    lm = np.where(flip, local[:, 1], local[:, 0])
-
+    mc, pc, lm = minus_and_plus(pair, local, minus_cells, "edge")
     keep = np.ones(ie.edges.shape[0], dtype=bool)
     keep[s] = False
-    cut = np.zeros(n, dtype=bool)
-    cut[ie.edges[s].ravel()] = True
-    new_cells, parent = _split_nodes(cells, _fans(cells, ie, keep), cut, n)
-    split = np.zeros(n, dtype=bool)
-    split[parent[n:]] = True
+    new_cells, parent, split = split_cut_nodes(cells, _fans(cells, ie, keep), ie.edges[s], n)
 
     # the minus cell is counter-clockwise: its edge lm runs a -> b with the cell on its left,
     # so m0 -> m1 = b -> a puts it on the right
@@ -291,12 +316,7 @@ def insert_interfaces(
         minus = _follow_edges(cells, new_cells, old_if[:, [1, 0]], n, split)[:, [1, 0]]
         plus = _follow_edges(cells, new_cells, old_if[:, 2:], n, split)
         old_if = np.concatenate([minus, plus], axis=1)
-    in_parent = np.zeros(n, dtype=bool)
-    node_sets = {}
-    for name, ids in mesh.node_sets.items():
-        in_parent[:] = False
-        in_parent[ids] = True
-        node_sets[name] = np.concatenate([ids, n + np.flatnonzero(in_parent[parent[n:]])])
+    node_sets = copied_node_sets(mesh.node_sets, parent, n)
     edge_sets = {name: _follow_edges(cells, new_cells, np.asarray(e, dtype=np.int64).reshape(-1, 2),
                                      n, split)
                  for name, e in mesh.edge_sets.items()}

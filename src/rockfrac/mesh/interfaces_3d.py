@@ -24,7 +24,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from rockfrac.mesh.interfaces import _region_mask, _selected_indices, _split_nodes, region_labels
+from rockfrac.mesh.interfaces import (
+    _region_mask,
+    _selected_indices,
+    copied_node_sets,
+    minus_and_plus,
+    region_labels,
+    split_cut_nodes,
+)
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.topology import CELL_FACES, same_nodes
 
@@ -150,25 +157,10 @@ def insert_faces(mesh: Mesh, selected: np.ndarray, minus_cells: np.ndarray | Non
     s = _selected_indices(selected, f.faces.shape[0])
     cells, n = mesh.cells, mesh.n_nodes
     pair, local = f.cells[s], f.local[s]
-    if minus_cells is None:
-        flip = np.zeros(s.size, dtype=bool)
-    else:
-        minus_cells = np.asarray(minus_cells, dtype=np.int64).ravel()
-        if minus_cells.shape != s.shape:
-            raise ValueError(f"minus_cells needs one cell per selected face ({s.size})")
-        flip = minus_cells == pair[:, 1]
-        if np.any(~flip & (minus_cells != pair[:, 0])):
-            raise ValueError("a minus cell is not one of the two cells of its face")
-    mc, pc = np.where(flip, pair[:, 1], pair[:, 0]), np.where(flip, pair[:, 0], pair[:, 1])
-    lm = np.where(flip, local[:, 1], local[:, 0])
-
+    mc, pc, lm = minus_and_plus(pair, local, minus_cells, "face")
     keep = np.ones(f.faces.shape[0], dtype=bool)
     keep[s] = False
-    cut = np.zeros(n, dtype=bool)
-    cut[f.faces[s].ravel()] = True
-    new_cells, parent = _split_nodes(cells, _fans(cells, f, keep), cut, n)
-    split = np.zeros(n, dtype=bool)
-    split[parent[n:]] = True
+    new_cells, parent, split = split_cut_nodes(cells, _fans(cells, f, keep), f.faces[s], n)
 
     corners = CELL_FACES[cells.shape[1]][lm]  # (k, m) outward from the minus cell
     minus = new_cells[mc[:, None], corners]
@@ -176,12 +168,7 @@ def insert_faces(mesh: Mesh, selected: np.ndarray, minus_cells: np.ndarray | Non
     plus_corner = np.argmax(cells[pc][:, None, :] == old_nodes[:, :, None], axis=2)
     plus = np.take_along_axis(new_cells[pc], plus_corner, axis=1)
 
-    in_parent = np.zeros(n, dtype=bool)
-    node_sets = {}
-    for name, ids in mesh.node_sets.items():
-        in_parent[:] = False
-        in_parent[ids] = True
-        node_sets[name] = np.concatenate([ids, n + np.flatnonzero(in_parent[parent[n:]])])
+    node_sets = copied_node_sets(mesh.node_sets, parent, n)
     face_sets = {name: _follow_faces(cells, new_cells, np.asarray(fs, dtype=np.int64), split)
                  for name, fs in mesh.face_sets.items()}
     return replace(mesh, nodes=mesh.nodes[parent], cells=new_cells, interfaces=np.concatenate([minus, plus], axis=1),

@@ -231,9 +231,19 @@ def test_tetrahedra_are_written_for_paraview(cylinder, tmp_path):
     np.testing.assert_allclose(back.point_data["displacement"], u)
 
 
-@pytest.fixture(scope="module")
-def jointed(tmp_path_factory):
-    case = load_case(TRIAXIAL / "joint.toml")
+@pytest.fixture(scope="module", params=["ep", "rp"])
+def jointed(tmp_path_factory, request):
+    """The jointed triaxial example as given (EP), and with its joint rigid-plastic (RP)."""
+    import tomllib
+
+    from rockfrac.case.schema import parse_case
+
+    d = tomllib.loads((TRIAXIAL / "joint.toml").read_text())
+    d["mesh"]["file"] = str(TRIAXIAL / d["mesh"]["file"])
+    if request.param == "rp":
+        d["cohesive"].update(form="rp", augmentation=1e15)
+        del d["cohesive"]["kn"], d["cohesive"]["kt"]
+    case = parse_case(d, "joint.toml")
     out = tmp_path_factory.mktemp("joint")
     return case, run(case, out), out
 
@@ -304,3 +314,34 @@ def test_3d_crack_map_draws_the_yielded_joint(jointed, tmp_path):
     dip = math.radians(55.0)
     # the centres lie on the (deformed) joint plane z = H/2 - x tan(dip), to the magnified slip
     assert np.abs(z - (0.05 - x * math.tan(dip))).max() < 0.01
+
+
+@pytest.mark.parametrize("element", ["hex8", "tet4"])
+def test_drucker_prager_box_in_general_3d_yields_at_the_closed_form(tmp_path, element):
+    """A Drucker-Prager box of either 3D cell, held in y on both faces (eps_yy = 0), a pressure p on
+    the x faces, then shortened along z: every Gauss point carries the same stress, with sigma_x =
+    -p, and ends on the cone F = 0 (its three unequal principal stresses), the whole body plastic."""
+    from rockfrac.api import make_case
+
+    box = rt.box(tmp_path / "b.msh", (1.0, 1.0, 2.0), (2, 2, 3), element=element)
+    beta, b, k0, p = 0.5, 0.1, 5e6, 2e6
+    case = make_case(mesh={"kind": "gmsh", "file": str(box)},
+                     bulk={"model": "drucker_prager", "E": E, "nu": NU, "beta": beta, "b": b, "kappa0": k0},
+                     stages=[{"name": "confine", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
+                                                                 "bottom": {"z": 0.0}, "back": {"y": 0.0}},
+                              "pressure": {"right": p}},
+                             {"name": "axial", "steps": 20, "displacement": {"top": {"z": -2e-3}}}],
+                     output={"picture": False})
+    r = run(case, tmp_path / "o")
+    assert r.history["bulk_plastic"][-1] == 1.0
+    s = r.cell_stress()
+    sx, sy, sz = s[0, 0], s[0, 1], s[0, 2]
+    np.testing.assert_allclose(s, np.broadcast_to(s[0], s.shape), atol=1e-7 * abs(sz))  # homogeneous
+    assert sx == pytest.approx(-p, rel=1e-9)
+    # on the cone: sqrt(3/2) |dev sigma| + sqrt(3) (beta p_mean - kappa0) = 0
+    mean = (sx + sy + sz) / 3
+    dev = np.array([sx - mean, sy - mean, sz - mean])
+    f = math.sqrt(1.5) * np.linalg.norm(dev) + math.sqrt(3) * (beta * mean - k0)
+    assert abs(f) <= 1e-9 * k0
+    # plane strain in y (held front and back): eps_yy = 0, so the flow keeps sigma_y between
+    assert sz < sy < 0 and sz < -p

@@ -4,6 +4,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= out/paper
+MPI_VENV := .venv-mpi
+MPI_STAMP := $(MPI_VENV)/.installed
+PETSC_DIR ?= /usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real
 
 .PHONY: setup paper test bench bench-peer clean
 
@@ -18,9 +21,21 @@ setup: $(STAMP)
 paper: $(STAMP)
 	$(BIN)/rockfrac paper --out $(OUT)
 
-test: $(STAMP)
+test: $(STAMP) $(MPI_STAMP)
 	$(BIN)/python -m mypy
 	$(BIN)/python -m pytest
+	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/python -m pytest tests/mpi
+
+# PETSc/MPI (issue 17): Debian's petsc4py (PETSc 3.18 with MUMPS, hypre) seen from a venv of Debian's
+# own Python with its system site packages, NumPy < 2 (Debian's petsc4py is built against NumPy 1);
+# the Debian packages are installed first where they are missing (a fresh machine of this kind)
+
+$(MPI_STAMP): pyproject.toml
+	/usr/bin/python3 -c "import petsc4py, mpi4py, venv" 2>/dev/null || (apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv python3-petsc4py-real python3-mpi4py openmpi-bin)
+	/usr/bin/python3 -m venv --system-site-packages $(MPI_VENV)
+	$(MPI_VENV)/bin/pip install --quiet -e ".[test]" "numpy>=1.26,<2" "scipy>=1.11,<1.15" "numba>=0.59" "llvmlite>=0.42"
+	touch $(MPI_STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py
@@ -30,7 +45,7 @@ bench-peer: $(STAMP)
 	$(BIN)/python benchmarks/peer.py
 
 clean:
-	rm -rf $(VENV) out
+	rm -rf $(VENV) $(MPI_VENV) out
 
 .PHONY: kernels scaling
 kernels: $(STAMP)

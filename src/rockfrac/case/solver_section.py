@@ -17,6 +17,8 @@ class LinearSolverName(str, Enum):
     pardiso = "pardiso"
     mumps = "mumps"
     gmres_amg = "gmres-amg"
+    petsc = "petsc"
+    petsc_gamg = "petsc-gamg"
 
 
 class SolverSection(_Section):

@@ -33,6 +33,7 @@ from rockfrac.solve.backend import (  # noqa: F401 (the contract and SuperLU, re
     is_symmetric,
 )
 from rockfrac.solve.iterative import Handover, KrylovAMG, rigid_modes_3d  # noqa: F401 (re-exported)
+from rockfrac.solve.petsc import PetscDirect, PetscGAMG
 
 
 class _Pattern:
@@ -354,7 +355,8 @@ class Mumps(_Backend):
         return _MumpsFactor(self._ctx, self.generation, self)
 
 
-SOLVERS = {"pardiso": Pardiso, "mumps": Mumps, "superlu": SuperLU, "gmres-amg": KrylovAMG}
+SOLVERS = {"pardiso": Pardiso, "mumps": Mumps, "superlu": SuperLU, "gmres-amg": KrylovAMG, "petsc": PetscDirect,
+           "petsc-gamg": PetscGAMG}
 
 
 def available() -> list[str]:
@@ -398,6 +400,10 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
     try:
         if name == "gmres-amg":
             return KrylovAMG(coordinates)
+        if name == "petsc":
+            return PetscDirect(coordinates)
+        if name == "petsc-gamg":
+            return PetscGAMG(coordinates)
         return SOLVERS[name]()
     except ImportError as err:
         raise ValueError(f"linear solver {name!r} is not installed here ({err}); available: {available()}") from None

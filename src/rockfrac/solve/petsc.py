@@ -1,0 +1,121 @@
+"""PETSc linear solvers through petsc4py, on one process: the first step towards MPI runs (issue 17).
+
+- ``petsc``: a direct LU of PETSc's AIJ matrix by MUMPS (``-pc_factor_mat_solver_type mumps``);
+- ``petsc-gamg``: GMRES(60) preconditioned by PETSc's smoothed-aggregation AMG (GAMG), with the
+  six rigid-body modes of a 3D mesh as near-null space, relative residual 1e-11.
+
+petsc4py is not a dependency of the serial install: Debian's ``python3-petsc4py-real`` (PETSc 3.18
+with MUMPS, hypre, SuperLU_dist) is seen from a venv made by Debian's Python with
+``--system-site-packages`` and NumPy < 2 (``make test`` builds one, ``.venv-mpi``); elsewhere these
+backends are simply not installed (``available()``). The options each backend sets are in its
+``options`` (the run's log names the backend).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from rockfrac.solve.backend import DENSE_UP_TO, Factorization, SolverFailed, _Backend
+from rockfrac.solve.iterative import rigid_modes_3d
+
+
+def _petsc():
+    from petsc4py import PETSc  # ImportError where petsc4py is not installed: not available
+
+    return PETSc
+
+
+class _PetscFactor:
+    """A configured KSP on one matrix: ``solve(b)`` as often as needed."""
+
+    def __init__(self, ksp, a):
+        self._ksp, self._a = ksp, a
+        self.iterations = 0
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        petsc = _petsc()
+        rhs = petsc.Vec().createWithArray(np.ascontiguousarray(b, dtype=np.float64), comm=petsc.COMM_SELF)
+        x = rhs.duplicate()
+        try:
+            self._ksp.solve(rhs, x)
+        except petsc.Error as err:
+            raise SolverFailed(f"PETSc KSP failed: {err}") from None
+        reason = self._ksp.getConvergedReason()
+        self.iterations = self._ksp.getIterationNumber()
+        out = x.getArray().copy()
+        if reason < 0 or not np.all(np.isfinite(out)):
+            raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {self.iterations} iterations)")
+        return out
+
+
+class _PetscBackend(_Backend):
+    options: dict[str, str] = {}
+
+    def __init__(self, coordinates: np.ndarray | None = None) -> None:
+        _petsc()
+        self._coordinates = coordinates
+
+    def _matrix(self, a: sp.csr_matrix):
+        petsc = _petsc()
+        a = sp.csr_matrix(a)
+        a.sort_indices()
+        m = petsc.Mat().createAIJ(a.shape, csr=(a.indptr.astype(petsc.IntType), a.indices.astype(petsc.IntType),
+                                                a.data), comm=petsc.COMM_SELF)
+        m.assemble()
+        return m
+
+    def _ksp(self, m):
+        petsc = _petsc()
+        ksp = petsc.KSP().create(comm=petsc.COMM_SELF)
+        ksp.setOperators(m)
+        prefix = f"rockfrac_{id(self)}_"
+        ksp.setOptionsPrefix(prefix)
+        opts = petsc.Options()
+        for k, v in self.options.items():
+            opts[prefix + k] = v
+        return ksp, opts, prefix
+
+
+class PetscDirect(_PetscBackend):
+    """LU by MUMPS inside PETSc (one process)."""
+
+    name = "petsc"
+    dense_up_to = DENSE_UP_TO
+    options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
+        m = self._matrix(a)
+        ksp, _, _ = self._ksp(m)
+        ksp.setFromOptions()
+        try:
+            ksp.setUp()
+        except _petsc().Error as err:
+            raise SolverFailed(f"PETSc LU (MUMPS) failed: {err}") from None
+        return _PetscFactor(ksp, m)
+
+
+class PetscGAMG(_PetscBackend):
+    """GMRES(60) + GAMG inside PETSc (one process); the rigid-body modes as near-null space in 3D."""
+
+    name = "petsc-gamg"
+    options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
+               "ksp_max_it": "600", "pc_type": "gamg"}
+
+    def _factorize(self, a: sp.csr_matrix) -> Factorization:
+        petsc = _petsc()
+        m = self._matrix(a)
+        x = self._coordinates
+        if x is not None and x.shape[1] == 3 and a.shape[0] == x.size:
+            m.setBlockSize(3)
+            modes = np.linalg.qr(rigid_modes_3d(x))[0]  # orthonormal, as PETSc's null spaces are
+            vecs = [petsc.Vec().createWithArray(np.ascontiguousarray(modes[:, k]), comm=petsc.COMM_SELF)
+                    for k in range(6)]
+            m.setNearNullSpace(petsc.NullSpace().create(vectors=vecs, comm=petsc.COMM_SELF))
+        ksp, _, _ = self._ksp(m)
+        ksp.setFromOptions()
+        try:
+            ksp.setUp()
+        except petsc.Error as err:
+            raise SolverFailed(f"PETSc GAMG set-up failed: {err}") from None
+        return _PetscFactor(ksp, m)

@@ -1,0 +1,84 @@
+"""PETSc backends on one process (issue 17's first step), run by ``make test`` in ``.venv-mpi``
+(Debian's petsc4py; skipped in a venv without it): LU by MUMPS and GMRES + GAMG against SuperLU, and
+a whole 3D cohesive run through PETSc against the serial one."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+pytest.importorskip("petsc4py")
+
+from rockfrac.api import make_case, run  # noqa: E402
+from rockfrac.case.build import build  # noqa: E402
+from rockfrac.case.schema import parse_case  # noqa: E402
+from rockfrac.mesh import rock_tests as rt  # noqa: E402
+from rockfrac.solve import linear  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+TRIAXIAL = ROOT / "examples" / "rock_tests" / "triaxial"
+
+
+def elastic_box_system(tmp_path, element: str, n: int):
+    """The tangent (Dirichlet rows applied) and a right-hand side of an elastic box on rollers."""
+    msh = rt.box(tmp_path / f"{element}.msh", (1.0, 1.0, 1.0), (n, n, n), element=element)
+    case = make_case(mesh={"kind": "gmsh", "file": str(msh)}, bulk={"E": 2e10, "nu": 0.25},
+                     stages=[{"name": "p", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
+                                                           "bottom": {"z": 0.0}}, "pressure": {"top": 1e6}}])
+    built = build(case)
+    model = built.model
+    model.set_dirichlet(built.stages[0].dirichlet)
+    u = np.zeros(model.n_dofs)
+    a = model.assemble(u, u, np.zeros(model.n_dofs)).matrix
+    a = model.apply_dirichlet(sp.csr_matrix(a))
+    b = np.random.default_rng(1).standard_normal(model.n_dofs)
+    b[model.dirichlet] = 0.0
+    return built, a, b
+
+
+@pytest.mark.parametrize("element", ["hex8", "tet4"])
+def test_petsc_lu_and_gamg_equal_superlu_on_a_3d_elastic_tangent(tmp_path, element):
+    built, a, b = elastic_box_system(tmp_path, element, 6)
+    ref = linear.SuperLU().solve(a, b)
+    x = linear.make_solver("petsc").solve(a, b)
+    assert np.abs(x - ref).max() <= 1e-10 * np.abs(ref).max()
+    gamg = linear.make_solver("petsc-gamg", built.mesh.nodes)
+    factor = gamg.factorize(a)
+    x = factor.solve(b)
+    assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
+    assert np.abs(x - ref).max() <= 1e-7 * np.abs(ref).max()
+    assert 0 < factor.iterations < 100  # the rigid-body modes make the AMG work: a few dozen iterations
+
+
+@pytest.mark.parametrize("name", ["petsc", "petsc-gamg"])
+def test_a_singular_system_is_a_solver_failure(name):
+    """A zero row with a nonzero right-hand side has no solution: SolverFailed (Newton then cuts back)."""
+    d = np.ones(400)
+    d[123] = 0.0
+    a = sp.diags(d).tocsr() + sp.diags(np.full(399, 1e-3), 1).tocsr()
+    a = a.tocsr()
+    a.data[a.indptr[123]:a.indptr[124]] = 0.0  # row 123 all zero
+    with pytest.raises(linear.SolverFailed):
+        linear.make_solver(name).solve(a, np.ones(400))
+
+
+def test_a_3d_cohesive_run_through_petsc_gives_the_serial_history(tmp_path):
+    """The jointed triaxial cylinder (3D EP joint, slipping): [solver] linear = 'petsc' (MUMPS inside
+    PETSc, one process) against SciPy's SuperLU, every history column to 1e-9."""
+    d = tomllib.loads((TRIAXIAL / "joint.toml").read_text())
+    d["mesh"]["file"] = str(TRIAXIAL / d["mesh"]["file"])
+    d["stages"][1]["steps"] = 20
+    runs = {}
+    for name in ("superlu", "petsc"):
+        d["solver"] = {"linear": name}
+        runs[name] = run(parse_case(d, "joint.toml"), tmp_path / name).history
+    a, b = runs["superlu"], runs["petsc"]
+    assert len(a["step"]) == len(b["step"]) and max(a["n_plastic"]) > 0
+    for key in ("R_bottom_z", "u_top_z", "D_dissipated", "W_external"):
+        scale = np.abs(a[key]).max()
+        np.testing.assert_allclose(b[key], a[key], rtol=1e-9, atol=1e-9 * scale)
+    assert list(a["newton_iterations"]) == list(b["newton_iterations"])

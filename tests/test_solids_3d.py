@@ -345,3 +345,24 @@ def test_drucker_prager_box_in_general_3d_yields_at_the_closed_form(tmp_path, el
     assert abs(f) <= 1e-9 * k0
     # plane strain in y (held front and back): eps_yy = 0, so the flow keeps sigma_y between
     assert sz < sy < 0 and sz < -p
+
+
+def test_3d_interfaces_are_written_for_paraview_with_their_jumps(jointed, tmp_path):
+    """The jointed cylinder's step fields: tetrahedra, then the joint as zero-thickness wedges whose
+    cell data carry the (t1, t2, n) jump and traction, read back by meshio."""
+    import meshio
+
+    from rockfrac.output.fields import step_output
+
+    _, r, _ = jointed
+    grid = step_output(r.built, r.u)
+    meshio.write(tmp_path / "j.vtu", grid.to_meshio())
+    back = meshio.read(tmp_path / "j.vtu")
+    kinds = [c.type for c in back.cells]
+    assert kinds == ["tetra", "wedge"]
+    n_if = r.built.mesh.interfaces.shape[0]
+    jump = back.cell_data["jump"][1]
+    traction = back.cell_data["traction"][1]
+    assert jump.shape == (n_if, 3) and traction.shape == (n_if, 3)
+    assert np.all(np.abs(jump[:, 1]) > 10 * np.abs(jump[:, 0]))  # slid down the dip (t2), not along the strike
+    np.testing.assert_array_equal(back.cells[1].data, r.built.mesh.interfaces)

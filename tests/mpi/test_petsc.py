@@ -82,3 +82,33 @@ def test_a_3d_cohesive_run_through_petsc_gives_the_serial_history(tmp_path):
         scale = np.abs(a[key]).max()
         np.testing.assert_allclose(b[key], a[key], rtol=1e-9, atol=1e-9 * scale)
     assert list(a["newton_iterations"]) == list(b["newton_iterations"])
+
+
+def built_dofs(out: Path) -> int:
+    """The unknowns of the run written to ``out`` (its case.toml rebuilt)."""
+    from rockfrac.case.schema import load_case
+
+    return build(load_case(out / "case.toml")).model.n_dofs
+
+
+def test_a_path_following_rp_run_through_petsc_gives_the_serial_history(tmp_path):
+    """The paper's RP case (8 x 8 quads a block) under path control: bordered solves of saddle-point
+    tangents with multiplier dofs, 'petsc' against SuperLU, the history to 1e-9."""
+    from rockfrac.studies import table1
+
+    runs = {}
+    for name in ("superlu", "petsc"):
+        d = table1.cse_case("rp", axial_steps=60, control="path", axial_displacement=1e-3)
+        d["mesh"].update(nx=8, ny=8)  # 330 unknowns: above the dense path, so PETSc factorizes
+        d["solver"] = {"linear": name}
+        d["output"] = {"picture": False}
+        runs[name] = run(parse_case(d, "rp.toml"), tmp_path / name).history
+    a, b = runs["superlu"], runs["petsc"]
+    assert len(a["step"]) == len(b["step"]) and max(a["n_plastic"]) > 0 and "path" in set(a["control"])
+    assert built_dofs(tmp_path / "petsc") > linear.DENSE_UP_TO
+    for key in ("F_axial", "u_axial", "jump_p_norm"):
+        scale = np.nanmax(np.abs(a[key]))
+        np.testing.assert_allclose(b[key], a[key], rtol=1e-9, atol=1e-9 * scale)
+    # the same Newton path; a step may end one iteration apart where the round-off of the two
+    # factorizations meets the convergence test
+    assert np.abs(np.asarray(a["newton_iterations"]) - np.asarray(b["newton_iterations"])).max() <= 1

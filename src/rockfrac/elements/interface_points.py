@@ -7,8 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rockfrac.fem.loads import segment_pair_forces
-from rockfrac.fem.reference import QUAD4, TRI3, TRIANGLE_RULE
+from rockfrac.fem.loads import face_rule, segment_pair_forces
 
 
 @dataclass
@@ -126,20 +125,6 @@ def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
         segment_x=np.stack([xm0[:, :2], xm1[:, :2]], axis=1),
     )
 
-
-
-def face_rule(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Shape values (qp, m), points (k, qp, 3) and n dA times the Gauss weight (k, qp, 3) [m^2] on
-    triangles (m = 3, three points) or bilinear quadrilaterals (m = 4, 2 x 2) with corners x (k, m, 3)."""
-    if x.shape[1] == 3:
-        pts, w = TRIANGLE_RULE
-        ref = TRI3
-    else:
-        pts, w = QUAD4.points, QUAD4.weights
-        ref = QUAD4
-    shape, dn = ref.shape(pts), ref.shape_gradients(pts)
-    nda = np.cross(np.einsum("qa,kai->kqi", dn[:, :, 0], x), np.einsum("qa,kai->kqi", dn[:, :, 1], x))
-    return shape, np.einsum("qa,kai->kqi", shape, x), nda * w[None, :, None]
 
 
 def local_frames_3d(normal: np.ndarray) -> np.ndarray:

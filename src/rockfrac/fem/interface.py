@@ -1,7 +1,8 @@
 """Zero-thickness interface kinematics with nodal integration: the blocks of a (minus, plus) node
 pair from its local traction and tangent, and the multiplier rows of the rigid-plastic form.
 
-Each point is a (minus, plus) node pair, dofs (minus x, minus y, plus x, plus y[, lambda x, lambda y]);
+Each point is a (minus, plus) node pair, dofs (minus x, minus y, plus x, plus y[, lambda x, lambda y])
+(3D: minus xyz, plus xyz[, lambda xyz], local frame (t1, t2, n));
 the jump is u(+) - u(-) in the global frame, rotated into the local (t, n) frame by R (rows t, n);
 a local traction T gives the global T_g = R^T T, entering the weak form (5) as + int [[w]] . T ds.
 Compiled helpers, inlined into the traction laws' point loops (one loop per law: a law's update is
@@ -70,3 +71,31 @@ def junction_rows(r, w, eps, lam, t_old_t, t_old_n, fi, ki):
 def local_jump(r, dj):
     """(t, n) components of a global jump (2,)."""
     return r[0, 0] * dj[0] + r[0, 1] * dj[1], r[1, 0] * dj[0] + r[1, 1] * dj[1]
+
+
+@nb.njit(cache=True)
+def local_jump_3d(r, v):
+    """(t1, t2, n) components of a global vector (3,)."""
+    return (r[0, 0] * v[0] + r[0, 1] * v[1] + r[0, 2] * v[2], r[1, 0] * v[0] + r[1, 1] * v[1] + r[1, 2] * v[2],
+            r[2, 0] * v[0] + r[2, 1] * v[1] + r[2, 2] * v[2])
+
+
+@nb.njit(cache=True)
+def pair_blocks_3d(r, w, s, d, fe, ke):
+    """Force (6,) and stiffness (6, 6) of one node pair, dofs (minus xyz, plus xyz), from the local
+    traction s[0:3] [Pa] and tangent d (3, 3): T_g = R^T T, K = R^T d R, times the weight w [m^2]."""
+    for a in range(3):
+        tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
+        fe[a] = -w * tg
+        fe[3 + a] = w * tg
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for a in range(3):
+                for b in range(3):
+                    acc += r[a, i] * d[a, b] * r[b, j]
+            k = w * acc
+            ke[i, j] = k
+            ke[i, 3 + j] = -k
+            ke[3 + i, j] = -k
+            ke[3 + i, 3 + j] = k

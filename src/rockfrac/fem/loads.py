@@ -77,22 +77,28 @@ def edge_stress_traction(nodes: np.ndarray, edges: np.ndarray, stress: StressFie
     _scatter(f, edges, forces, 2)
 
 
-def _face_geometry(nodes: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Shape values (qp, m), points (k, qp, 3) and n dA times the Gauss weight (k, qp, 3) of
-    bilinear (m = 4, 2 x 2 points of weight 1) or triangular (m = 3, three points) faces."""
-    x = nodes[faces]
-    if faces.shape[1] == 3:
+def face_rule(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Shape values (qp, m), points (k, qp, 3) [m] and n dA times the Gauss weight (k, qp, 3) [m^2] of
+    bilinear (m = 4, 2 x 2 points of weight 1) or triangular (m = 3, three points) faces with
+    corners x (k, m, 3)."""
+    if x.shape[1] == 3:
         pts, w = TRIANGLE_RULE
-        shape, dn = TRI3.shape(pts), TRI3.shape_gradients(pts)
+        ref = TRI3
     else:
         pts, w = QUAD4.points, QUAD4.weights
-        shape, dn = QUAD4.shape(pts), QUAD4.shape_gradients(pts)
+        ref = QUAD4
+    shape, dn = ref.shape(pts), ref.shape_gradients(pts)
     xi = np.einsum("qa,kai->kqi", dn[:, :, 0], x)
     eta = np.einsum("qa,kai->kqi", dn[:, :, 1], x)
     nda = np.cross(xi, eta)
-    if faces.shape[1] == 3:
+    if x.shape[1] == 3:
         nda = nda * w[None, :, None]
     return shape, np.einsum("qa,kai->kqi", shape, x), nda
+
+
+def _face_geometry(nodes: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`face_rule` of the faces (k, m) of a mesh with these nodes."""
+    return face_rule(nodes[faces])
 
 
 def face_pressure(nodes: np.ndarray, faces: np.ndarray, pressure: float, f: np.ndarray) -> None:

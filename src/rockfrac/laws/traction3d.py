@@ -24,7 +24,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from rockfrac.fem.interface import CHUNK
+from rockfrac.fem.interface import CHUNK, local_jump_3d, pair_blocks_3d
 from rockfrac.laws.mohr_coulomb_surface import MohrCoulombSurface
 from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw, keep_committed
 from rockfrac.threads import parallel_kernel
@@ -130,34 +130,6 @@ def ep_update_3d(ret, du, s_old, p, ct, cn, s_new, D):
                      s_old[S_TT2], s_old[S_TN], ct, cn, s_old, p, s_new, D, np.empty(n2), np.empty(n2), np.empty((2, 2)))
 
 
-@nb.njit(cache=True)
-def _local(r, v):
-    """(t1, t2, n) components of a global vector (3,)."""
-    return (r[0, 0] * v[0] + r[0, 1] * v[1] + r[0, 2] * v[2], r[1, 0] * v[0] + r[1, 1] * v[1] + r[1, 2] * v[2],
-            r[2, 0] * v[0] + r[2, 1] * v[1] + r[2, 2] * v[2])
-
-
-@nb.njit(cache=True)
-def pair_blocks_3d(r, w, s, d, fe, ke):
-    """Force (6,) and stiffness (6, 6) of one node pair, dofs (minus xyz, plus xyz), from the local
-    traction s[0:3] [Pa] and tangent d (3, 3): T_g = R^T T, K = R^T d R, times the weight w [m^2]."""
-    for a in range(3):
-        tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
-        fe[a] = -w * tg
-        fe[3 + a] = w * tg
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for a in range(3):
-                for b in range(3):
-                    acc += r[a, i] * d[a, b] * r[b, j]
-            k = w * acc
-            ke[i, j] = k
-            ke[i, 3 + j] = -k
-            ke[3 + i, j] = -k
-            ke[3 + i, 3 + j] = k
-
-
 # --------------------------------------------------------------------------------------------
 # the EP and RP forms at n points
 # --------------------------------------------------------------------------------------------
@@ -176,7 +148,7 @@ def ep_points_3d(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, st
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             r = frame[i]
             so = s_old[i]
-            du0, du1, du2 = _local(r, djump[i])
+            du0, du1, du2 = local_jump_3d(r, djump[i])
             if du0 == 0.0 and du1 == 0.0 and du2 == 0.0 and so[mode_slot] == MODE_PLASTIC:
                 keep_committed(so, d_old[i], s_new[i], d_new[i], dgamma_slot)
                 status[i] = 1
@@ -190,7 +162,7 @@ def ep_points_3d(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, st
 @nb.njit(cache=True)
 def _rp_rows(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
     """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
-    :func:`pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D."""
+    :func:`rockfrac.fem.interface.pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D."""
     for a in range(3):
         tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
         fi[6 + a] = w * (tg - lam[a])
@@ -222,8 +194,8 @@ def rp_points_3d(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             r = frame[i]
             so, sn, dn = s_old[i], s_new[i], d_new[i]
-            h0, h1, h2 = _local(r, djump[i])
-            l0, l1, l2 = _local(r, lam[i])
+            h0, h1, h2 = local_jump_3d(r, djump[i])
+            l0, l1, l2 = local_jump_3d(r, lam[i])
             if h0 == 0.0 and h1 == 0.0 and h2 == 0.0 and so[mode_slot] == MODE_PLASTIC and not pinned[i]:
                 keep_committed(so, d_old[i], sn, dn, dgamma_slot)
                 status[i] = 1

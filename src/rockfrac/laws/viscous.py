@@ -24,8 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from rockfrac.fem.interface import local_jump, pair_blocks_local
-from rockfrac.laws.traction3d import _local, pair_blocks_3d
+from rockfrac.fem.interface import local_jump, local_jump_3d, pair_blocks_3d, pair_blocks_local
 from rockfrac.threads import parallel_kernel
 
 CHUNK = 256  # points per parallel task
@@ -52,7 +51,7 @@ def duvaut_lions_points(frame, weight, djump, s_old, s_new, d_new, a, kt, kn, dg
             if dim == 2:
                 du[0], du[1] = local_jump(r, djump[i])
             else:
-                du[0], du[1], du[2] = _local(r, djump[i])
+                du[0], du[1], du[2] = local_jump_3d(r, djump[i])
             for p in range(dim):
                 t_bar[i, p] = s_new[i, p]
             for k in range(dim, m):

@@ -263,7 +263,8 @@ def cylinder(path: str | Path, diameter: float = 0.05, height: float = 0.1, elem
     index[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
     tri = index[np.asarray(tri_nodes[0], dtype=np.int64)].reshape(-1, 3)
     a, b = xy[tri[:, 1]] - xy[tri[:, 0]], xy[tri[:, 2]] - xy[tri[:, 0]]
-    tri[a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0] = tri[a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0][:, [0, 2, 1]]
+    clockwise = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] < 0
+    tri[clockwise] = tri[clockwise][:, [0, 2, 1]]
     z_joint = 0.5 * height - xy[:, 0] * math.tan(joint_dip or 0.0)
     if joint_dip is None:
         fractions = np.linspace(0.0, 1.0, max(1, round(height / h)) + 1)[:, None]

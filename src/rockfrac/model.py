@@ -3,12 +3,30 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
+import math
+
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
 from rockfrac.elements.base import ElementGroup
 from rockfrac.fem.assembly import Pattern, scatter_matrix, scatter_vector
+
+
+@nb.njit(cache=True, fastmath={"reassoc"})
+def serial_dot(x: np.ndarray, y: np.ndarray) -> float:
+    """x . y on one thread (reassociated: the compiler vectorizes the sum, as BLAS does).
+
+    Not NumPy's BLAS: from 1e4 entries OpenBLAS splits a dot product over its threads, and waking
+    them cost up to 9 ms a call on a busy machine for microseconds of work (benchmarks/README.md,
+    "Serial path for small systems"); the loop is also faster than one-threaded BLAS up to 1e6 entries.
+    """
+    s = 0.0
+    for i in range(x.shape[0]):
+        s += x[i] * y[i]
+    return s
 
 
 @dataclass
@@ -144,6 +162,47 @@ class Model:
             scatter_vector(f_int, g.dofs, ev.fe)
             scatter_matrix(data, slots, ev.ke)
         return Assembled(f_int - f_ext, f_int, self.pattern.matrix(data), ok, switched, "; ".join(msgs), local)
+
+    # -- the reductions of the solvers (a distributed model sums over its ranks) ------------------
+    distributed = False  # True for a model of one rank's elements (rockfrac.parallel)
+
+    def _part(self, part: str) -> np.ndarray | None:
+        return {"free": self.free, "dirichlet": self.dirichlet, "all": None}[part]
+
+    def dot(self, x: np.ndarray, y: np.ndarray, part: str = "free") -> float:
+        """x . y over the dofs of ``part``: "free", "dirichlet" or "all"."""
+        idx = self._part(part)
+        return serial_dot(x, y) if idx is None else serial_dot(x[idx], y[idx])
+
+    def norm(self, x: np.ndarray, part: str = "free") -> float:
+        """The Euclidean norm of x over the dofs of ``part``."""
+        return math.sqrt(self.dot(x, x, part))
+
+    def gradient_dot(self, grad: np.ndarray, x: np.ndarray) -> float:
+        """grad . x for the gradient of a path measure (on a distributed model each rank holds the
+        part of the gradient from its own elements)."""
+        return serial_dot(grad, x)
+
+    def gradient_norm(self, grad: np.ndarray) -> float:
+        """|grad| of a path measure's gradient (distributed: the square root of the ranks' sum of
+        their parts' squares, a scale for the test of a rigid constraint)."""
+        return math.sqrt(serial_dot(grad, grad))
+
+    def reduce_all_finite(self, x: np.ndarray) -> bool:
+        """True if every entry of x is finite (on every rank)."""
+        return bool(np.all(np.isfinite(x)))
+
+    def reduce_sum(self, value: Any) -> Any:
+        """The sum of a value (a number or an array) over the ranks (serial: the value)."""
+        return value
+
+    def reduce_any(self, flag: bool) -> bool:
+        """True if the flag is true on any rank (serial: the flag)."""
+        return flag
+
+    def reduce_min(self, value: float) -> float:
+        """The smallest of a value over the ranks (serial: the value)."""
+        return value
 
     def apply_dirichlet(self, a: sp.csr_matrix) -> sp.csr_matrix:
         """Zero prescribed rows and columns, unit diagonal (the increment there is set by the rhs)."""

@@ -263,14 +263,9 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 obs.step(step)
 
         sol = case.solver
-        stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step,
-                                   locate_activation=sol.locate_activation, fallback=sol.fallback,
-                                   implex_tol=sol.implex_tol)
         t0 = time.perf_counter()
         with stop_on_signals() as request:
-            newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
-                                   force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),
-                                   should_stop=request)
+            newton, stepping = engine_options(built, request)
             solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
                                  any(g.n_extra for g in built.model.groups))
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
@@ -320,6 +315,18 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     finally:
         log.close()
     return RunSummary(result, out, wall, peak, run["iters"], built, warnings)
+
+
+def engine_options(built: Built, should_stop: Callable[[], bool] | None = None
+                   ) -> tuple[NewtonOptions, SteppingOptions]:
+    """Newton's and the stepping's options from the case's [solver] section."""
+    case, sol = built.case, built.case.solver
+    stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step, locate_activation=sol.locate_activation,
+                               fallback=sol.fallback, implex_tol=sol.implex_tol)
+    newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
+                           force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),
+                           should_stop=should_stop)
+    return newton, stepping
 
 
 def _size(built: Built) -> float:

@@ -6,6 +6,7 @@ initial state out of equilibrium...) surfaces here as a CaseError, before any st
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,14 +26,26 @@ from rockfrac.case.build_program import Program, build_program
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.program import StageSection
 from rockfrac.case.schema import Case
+from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
 from rockfrac.elements.interface_points import interface_points, interface_points_3d
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh
+from rockfrac.mesh.partition import Partition
 from rockfrac.model import Model
 from rockfrac.solve.stepping import Stage
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """One MPI rank's share of a run (:mod:`rockfrac.parallel`): the partition of the split mesh
+    (the same on every rank), this rank's part, and the model over the part's elements."""
+
+    split: Callable[[Mesh], Partition]
+    rank: int
+    make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
 
 
 @dataclass
@@ -46,6 +59,7 @@ class Built:
     thickness: float  # forces are reported per unit thickness: 1 in 2D, T for the plane-strain hex8 [m]
     bulks: list[SolidGroup] = field(default_factory=list)  # one group per material region
     cohesives: list[CohesiveEP | CohesiveRP] = field(default_factory=list)  # one CSE group per cohesive set
+    partition: Partition | None = None  # a distributed run's: the groups hold this rank's elements only
 
     @property
     def stages(self) -> list[Stage]:
@@ -126,12 +140,41 @@ def resolve(case: Case, path: str = "<case>") -> Case:
     return case.model_copy(update={"cohesive": sets})
 
 
-def build(case: Case, path: str = "<case>") -> Built:
-    """The model: mesh (split where cohesive surfaces go), bulk and surface groups, the loading program."""
+def refuse_distributed(case: Case, path: str) -> None:
+    """CaseError for what does not run on several MPI ranks yet, named (rockfrac.parallel)."""
+    why = "does not run on several MPI ranks yet; run it on one process"
+    if case.embedded is not None:
+        raise CaseError(f"{path}: [embedded]: embedded cracks {why} (their paths are tracked across the cells of "
+                        "every rank)")
+    for k, c in enumerate(case.cohesive_sets):
+        if c.form is CohesiveForm.rp:
+            raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "
+                            "multipliers are not partitioned); form = 'ep' does")
+    if case.initial is not None:
+        raise CaseError(f"{path}: [initial]: an initial state (gravity, in-situ stress) {why}")
+    for k, st in enumerate(case.stages or []):
+        if st.gravity is not None or st.in_situ:
+            raise CaseError(f"{path}: [stages {k + 1}]: gravity and in_situ loads {why}")
+        if st.control in ("arc_length", "energy", "opening"):
+            raise CaseError(f"{path}: [stages {k + 1}] control = {st.control!r} {why}; control = 'path' (the "
+                            "cracks' jumps) and 'load' do")
+
+
+def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:
+    """The model: mesh (split where cohesive surfaces go), bulk and surface groups, the loading program.
+
+    distribution: build one MPI rank's model, its groups holding the elements of its part only.
+    """
     case = resolve(case, path)
     mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
+    owned, part = None, None
+    if distribution is not None:
+        refuse_distributed(case, path)
+        part = distribution.split(mesh)
+        owned = part.cell_part == distribution.rank
+        set_cells = [cells[part.interface_part[cells] == distribution.rank] for cells in set_cells]
     try:
-        bulks = make_bulk_groups(case, mesh, path)
+        bulks = make_bulk_groups(case, mesh, path, owned)
     except CaseError:
         raise
     except ValueError as err:
@@ -140,9 +183,12 @@ def build(case: Case, path: str = "<case>") -> Built:
     for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
         points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
         cohesives += cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
-    model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
+    if distribution is None or part is None:
+        model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
+    else:
+        model = distribution.make_model(mesh, bulks + cohesives, part)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
-    return Built(case, mesh, model, program, thickness, bulks, cohesives)
+    return Built(case, mesh, model, program, thickness, bulks, cohesives, part)

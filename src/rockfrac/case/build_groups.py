@@ -106,8 +106,9 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
 
 
-def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
-    """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks."""
+def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None) -> list:
+    """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
+    ``owned`` (a mask over the cells): only these cells (one MPI rank's)."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     if emb is not None and mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen:
@@ -120,6 +121,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>") -> list:
         ede_regions = set(emb.regions)
     groups = []
     for section, cells, region in material_cells(case, mesh, path):
+        if owned is not None:
+            cells = cells[owned[cells]]
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):

@@ -229,10 +229,16 @@ def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, 
     return f
 
 
-def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_dofs: int, monitors: list[Monitor],
+def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, model: Model, monitors: list[Monitor],
               thickness: float, key: str, path: str) -> PathSpec | None:
     """The stage's path following: on the discontinuities' jumps (cohesive pairs or embedded cells),
-    on an opening monitor, on the arc length or on the energy released."""
+    on an opening monitor, on the arc length or on the energy released. On a distributed model the
+    jumps' measure averages over the points of every rank."""
+    n_dofs = model.n_dofs
+
+    def active() -> bool:
+        return model.reduce_any(any(g.path_active() for g in surfaces))
+
     if stage.control == "load":
         return None
     if stage.max_steps is None:
@@ -243,8 +249,7 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_d
         if stage.path_increment is None:
             raise CaseError(f"{path}: {key} path_increment: control = 'energy' needs the energy released per step "
                             "[J/m in 2D (per unit thickness), J in 3D]")
-        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment,
-                           lambda: any(g.path_active() for g in surfaces), stage.max_steps)
+        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment, active, stage.max_steps)
     if stage.control == "opening":
         found = {m.name: m for m in monitors}
         m = found.get(stage.monitor or "")
@@ -260,6 +265,8 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_d
         raise CaseError(f"{path}: {key}: path_increment is not resolved")
 
     def measure() -> Measure | None:
+        if model.distributed:
+            return distributed_measure()
         found = [(m, g.path_weight()) for g in surfaces if (m := g.path_measure(n_dofs)) is not None]
         if len(found) <= 1:
             return found[0][0] if found else None
@@ -273,8 +280,30 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, n_d
 
         return combined
 
-    return crack_path(measure, stage.path_increment, lambda: any(g.path_active() for g in surfaces),
-                      stage.max_steps)
+    def distributed_measure() -> Measure | None:
+        """The serial measure from the ranks' parts: each group's average over its points of every
+        rank (by their integration weights), the groups combined by their points' counts."""
+        found = [(k, m) for k, g in enumerate(surfaces) if (m := g.path_measure(n_dofs)) is not None]
+        counts, masses = np.zeros(len(surfaces)), np.zeros(len(surfaces))
+        for k, _ in found:
+            counts[k], masses[k] = surfaces[k].path_weight(), surfaces[k].measure_mass()
+        total_counts, total_masses = model.reduce_sum(counts), model.reduce_sum(masses)
+        if total_counts.sum() == 0.0:
+            return None
+        coef = [(m, total_counts[k] / total_counts.sum() * masses[k] / total_masses[k]) for k, m in found
+                if masses[k] > 0.0]
+
+        def combined(u: np.ndarray) -> tuple[float, np.ndarray]:
+            value, grad = 0.0, np.zeros(n_dofs)  # this rank's part of the gradient
+            for m, c in coef:
+                v, gr = m(u)
+                value += c * v
+                grad += c * gr
+            return model.reduce_sum(value), grad
+
+        return combined
+
+    return crack_path(measure, stage.path_increment, active, stage.max_steps)
 
 
 def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None, key: str, path: str) -> None:
@@ -404,7 +433,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         if st.control == "energy":
             _check_still_supports(presc, held, key, path)
         name = st.name or f"stage {k + 1}"
-        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model.n_dofs, monitors, thickness,
+        stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model, monitors, thickness,
                                                                  key, path),
                             source=source, dirichlet=dofs))
         stops.append(st.stop)

@@ -154,6 +154,11 @@ class ElementGroup(ABC):
         """How many points the path measure averages over (to combine several groups)."""
         return 0
 
+    def measure_mass(self) -> float:
+        """The total weight of the points in the path measure's own average (the integration weights
+        of cohesive points): what combines the parts of one group held by several MPI ranks."""
+        return float(self.path_weight())
+
     # -- output ------------------------------------------------------------------------------
     def point_records(self, u: np.ndarray) -> dict[str, np.ndarray] | None:
         """Committed per-point quantities of the discontinuities (points.csv), or None."""

@@ -103,6 +103,9 @@ class _CohesiveGroup(ElementGroup):
     def path_weight(self) -> int:
         return self.points.n
 
+    def measure_mass(self) -> float:
+        return float(self.points.weight.sum())
+
     BISECTIONS = 60  # halvings of the step fraction when locating an activation (2^-60: round-off)
 
     def activation_pending(self) -> bool:

@@ -20,11 +20,11 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
                         solver: LinearSolver) -> float | None:
     """The fraction of the load increment lam -> lam + dlam at which a pending surface first
     yields along the committed tangent's response, or None (none pending, or none yields)."""
-    if not any(g.activation_pending() for g in model.groups):
+    if not model.reduce_any(any(g.activation_pending() for g in model.groups)):
         return None
     model.begin_step()  # the trial state is the committed one: the tangent at u
     asm = model.assemble(u, u, loads.forces(lam))
-    if not asm.ok:
+    if not asm.ok:  # the same on every rank of a distributed model
         return None
     dofs_d = model.dirichlet
     a = asm.matrix
@@ -36,7 +36,8 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
         du = solver.factorize(model.apply_dirichlet(a)).solve(rhs)
     except RuntimeError:  # a singular tangent: no prediction, the step runs as it is
         return None
-    if not np.all(np.isfinite(du)):
+    if not model.reduce_all_finite(du):
         return None
     found = [s for g in model.groups if (s := g.activation(u, du)) is not None]
-    return min(found) if found else None
+    first = model.reduce_min(min(found) if found else np.inf)
+    return first if np.isfinite(first) else None

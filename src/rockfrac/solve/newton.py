@@ -16,38 +16,20 @@ embedded jumps) met to the residual tolerance, and, under path control, the cons
 A correction that raises the residual is halved (line search) from the third iteration on.
 Every iteration is logged.
 
-The norms and dot products of the convergence test are a serial compiled loop, not NumPy's BLAS:
-from 1e4 entries on OpenBLAS splits a dot product over its threads, and waking them cost up to
-9 ms a call on a busy machine for microseconds of work (benchmarks/README.md, "Serial path for
-small systems"); the loop is also faster than one-threaded BLAS up to 1e6 entries.
+The norms and dot products of the convergence test are the model's (:meth:`rockfrac.model.Model.dot`):
+a serial compiled loop, or sums over the ranks of a distributed model.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numba as nb
 import numpy as np
 
 from rockfrac.model import Model
 from rockfrac.solve.linear import LinearSolver
-
-
-@nb.njit(cache=True, fastmath={"reassoc"})
-def _dot(x: np.ndarray, y: np.ndarray) -> float:
-    """x . y on one thread (reassociated: the compiler vectorizes the sum, as BLAS does)."""
-    s = 0.0
-    for i in range(x.shape[0]):
-        s += x[i] * y[i]
-    return s
-
-
-def _norm(x: np.ndarray) -> float:
-    """Euclidean norm without BLAS threads (see the module note)."""
-    return math.sqrt(_dot(x, x))
 
 
 @dataclass(frozen=True)
@@ -121,7 +103,7 @@ def newton_step(
     Load control: ``lam`` is the target. Path control: ``lam`` is the initial guess and the
     result's lam satisfies ``control``.
     """
-    dofs_d, free = model.dirichlet, model.free
+    dofs_d = model.dirichlet
     u = u_n.copy()
     if control is None:
         u_lam = lam
@@ -137,8 +119,8 @@ def newton_step(
     rigid = False  # the last correction could not move g (it pushed the load by control.predictor)
 
     def relative(asm, f_ext) -> float:
-        ref = max(_norm(f_ext[free]), _norm(asm.residual[dofs_d]), options.force_scale)
-        return _norm(asm.residual[free]) / ref
+        ref = max(model.norm(f_ext, "free"), model.norm(asm.residual, "dirichlet"), options.force_scale)
+        return model.norm(asm.residual, "free") / ref
 
     for it in range(options.max_iterations + 1):
         if options.should_stop is not None and options.should_stop():
@@ -156,7 +138,7 @@ def newton_step(
             result.message = f"iteration {it}: {asm.message}"
             return result
         r = asm.residual
-        if not np.all(np.isfinite(r)):
+        if not model.reduce_all_finite(r):
             result.message = f"iteration {it}: non-finite residual"
             return result
         rel = relative(asm, f_ext)
@@ -178,7 +160,7 @@ def newton_step(
             return result
         if it > 0:
             assert last_du is not None  # set by every iteration before this one
-            rel_e = abs(_dot(last_du[free], r[free])) / energy0 if energy0 else 0.0
+            rel_e = abs(model.dot(last_du, r)) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
             # a state switch in this iterate (constrained <-> plastic) is part of the residual just
             # computed (multiplier rows included), so a small residual is an equilibrium of it: a
@@ -210,10 +192,10 @@ def newton_step(
             du = lu.solve(rhs)
             if control is not None:
                 du_b = lu.solve(rhs_b)
-                slope = _dot(grad, du_b) + control.lam_coeff
-                rigid = not abs(slope) > 1e-12 * _norm(grad) * _norm(du_b)
+                slope = model.gradient_dot(grad, du_b) + control.lam_coeff
+                rigid = not abs(slope) > 1e-12 * model.gradient_norm(grad) * model.norm(du_b, "all")
                 if not rigid:
-                    dlam = (control.target - g - _dot(grad, du)) / slope
+                    dlam = (control.target - g - model.gradient_dot(grad, du)) / slope
                 else:  # rigid (all constrained): g cannot move yet, so push the load instead
                     dlam = control.predictor
                 du = du + dlam * du_b
@@ -223,10 +205,10 @@ def newton_step(
             return result
         finally:
             result.time_solve += time.perf_counter() - t0
-        if not np.all(np.isfinite(du)):
+        if not model.reduce_all_finite(du):
             result.message = f"iteration {it}: singular or ill-conditioned tangent"
             return result
-        energy0 = max(energy0 or 0.0, abs(_dot(du[free], rhs[free])))  # largest so far
+        energy0 = max(energy0 or 0.0, abs(model.dot(du, rhs)))  # largest so far
         if it >= 2 and options.line_search:
             # line search: the full correction is assembled (and reused next iteration); halved
             # while it raises the residual (breaks the flip-flop of a point on its yield surface)
@@ -240,7 +222,7 @@ def newton_step(
                 t0 = time.perf_counter()
                 trial = model.assemble(u_try, u_n, f_try)
                 result.time_assembly += time.perf_counter() - t0
-                ok = trial.ok and np.all(np.isfinite(trial.residual))
+                ok = trial.ok and model.reduce_all_finite(trial.residual)
                 if ok and (relative(trial, f_try) <= rel or halving == options.line_search):
                     break
                 alpha *= 0.5

@@ -215,7 +215,8 @@ def run_stages(
             if res.interrupted:
                 return stopped(stage)
             if (not res.converged and mode == "load" and stage.path is not None and not forced
-                    and (m := stage.path.constraint(committed)) is not None and np.any(m.measure(u)[1])):
+                    and (m := stage.path.constraint(committed)) is not None
+                    and model.reduce_any(bool(np.any(m.measure(u)[1])))):
                 # a limit point under load control, and a path measure that can respond (a
                 # discontinuity exists): follow the path from here; otherwise cut the load step back
                 forced = True

@@ -1,0 +1,99 @@
+"""Partition a mesh for MPI runs: METIS on the element graph, cohesive elements included.
+
+The graph's vertices are the bulk cells and the interface cells (after cohesive insertion), two of
+them adjacent where they share a node; an interface cell holds its minus and plus nodes, so it
+ties the cells on both of its sides together. ``pymetis.part_graph`` splits the graph into parts of
+equal element counts with a small cut. Each node belongs to the lowest part among the elements
+around it; the dofs are renumbered so that every part owns one contiguous block (``dim`` dofs per
+node, in the order of the parts, the original node order within a part): the row layout of PETSc's
+distributed matrices and vectors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from rockfrac.mesh.mesh import Mesh
+
+
+@dataclass(frozen=True)
+class Partition:
+    """Which part owns each cell, interface cell and node, and the dof renumbering by parts.
+
+    cell_part, interface_part, node_part: the owning part of each bulk cell, interface cell, node.
+    node_order: the nodes sorted by (part, index): node_order[k] gets the new index k.
+    node_starts: (n_parts + 1,) the new node indices of part r are node_starts[r] .. node_starts[r+1].
+    """
+
+    n_parts: int
+    dim: int
+    cell_part: np.ndarray
+    interface_part: np.ndarray
+    node_part: np.ndarray
+    node_order: np.ndarray
+    node_starts: np.ndarray
+
+    @property
+    def n_dofs(self) -> int:
+        return self.dim * self.node_part.shape[0]
+
+    def new_dofs(self) -> np.ndarray:
+        """(n_dofs,) the renumbered (PETSc) index of every dof: node n's component k is dim n + k."""
+        new_node = np.empty_like(self.node_order)
+        new_node[self.node_order] = np.arange(self.node_order.shape[0])
+        return (self.dim * new_node[:, None] + np.arange(self.dim)).ravel()
+
+    def owned_range(self, part: int) -> tuple[int, int]:
+        """The part's block of renumbered dofs [start, end)."""
+        return self.dim * int(self.node_starts[part]), self.dim * int(self.node_starts[part + 1])
+
+    def owned_dofs(self, part: int) -> np.ndarray:
+        """The part's dofs in the original numbering, in the order of their renumbered indices."""
+        nodes = self.node_order[self.node_starts[part]:self.node_starts[part + 1]]
+        return (self.dim * nodes[:, None] + np.arange(self.dim)).ravel()
+
+
+def element_graph(mesh: Mesh) -> sp.csr_matrix:
+    """Adjacency of the cells and interface cells (cells first) through shared nodes, no diagonal."""
+    elements = [mesh.cells, mesh.interfaces]
+    rows = np.concatenate([np.repeat(np.arange(e.shape[0]) + off, e.shape[1])
+                           for e, off in zip(elements, (0, mesh.cells.shape[0]))])
+    cols = np.concatenate([e.ravel() for e in elements])
+    n_el = mesh.cells.shape[0] + mesh.interfaces.shape[0]
+    incidence = sp.csr_matrix((np.ones(rows.shape[0]), (rows, cols)), shape=(n_el, mesh.n_nodes))
+    graph = (incidence @ incidence.T).tocsr()
+    graph.setdiag(0.0)
+    graph.eliminate_zeros()
+    graph.sort_indices()
+    return graph
+
+
+def partition(mesh: Mesh, n_parts: int) -> Partition:
+    """Split the mesh's cells and interface cells into ``n_parts`` parts (METIS) and number the
+    dofs by part; one part: everything in part 0, the numbering unchanged."""
+    if n_parts < 1:
+        raise ValueError(f"a partition needs at least one part, got {n_parts}")
+    n_cells, n_if = mesh.cells.shape[0], mesh.interfaces.shape[0]
+    n_el = n_cells + n_if
+    if n_parts > n_el:
+        raise ValueError(f"{n_parts} parts for {n_el} elements: each part needs at least one element")
+    if n_parts == 1:
+        part = np.zeros(n_el, dtype=np.int64)
+    else:
+        import pymetis
+
+        graph = element_graph(mesh)
+        _, labels = pymetis.part_graph(n_parts, xadj=graph.indptr, adjncy=graph.indices)
+        part = np.asarray(labels, dtype=np.int64)
+        if np.unique(part).shape[0] != n_parts:  # METIS may leave a part empty on a tiny graph
+            raise ValueError(f"METIS left a part empty splitting {n_el} elements into {n_parts} parts")
+    node_part = np.full(mesh.n_nodes, n_parts, dtype=np.int64)
+    for elements, owner in ((mesh.cells, part[:n_cells]), (mesh.interfaces, part[n_cells:])):
+        np.minimum.at(node_part, elements.ravel(), np.repeat(owner, elements.shape[1]))
+    node_part[node_part == n_parts] = 0  # nodes of no element (none in a checked mesh)
+    order = np.lexsort((np.arange(mesh.n_nodes), node_part))
+    starts = np.searchsorted(node_part[order], np.arange(n_parts + 1))
+    return Partition(n_parts, mesh.dim, part[:n_cells], part[n_cells:], node_part, order, starts)

@@ -1,0 +1,172 @@
+"""One MPI rank's model: its elements' groups, assembled into PETSc's distributed matrix and vectors.
+
+Every rank builds the same split mesh and its partition (:mod:`rockfrac.mesh.partition`), and groups
+holding only its own cells and interface cells, whose state stays on the rank. ``assemble`` runs
+the groups as the serial model does, on the rank's local dofs, then:
+
+- the internal forces are summed over the ranks in a PETSc vector (each rank adds its elements'
+  contributions, owned or not) and brought back to the local entries;
+- the tangent goes into an ``MPIAIJ`` matrix preallocated once from the exact pattern of the owned
+  rows (each rank sends the pattern of the rows it touches but does not own to their owners), with
+  the local-to-global map of the local dofs; a new nonzero after that is an error, not a
+  reallocation.
+
+Norms and dot products sum over the owned dofs of every rank (each dof counted once), the
+verdicts of the groups (a failed return, an event, the activation of a surface) are reduced over
+the ranks, so that Newton and the stepping take the same decisions on every rank.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from rockfrac.mesh.partition import Partition
+from rockfrac.model import Assembled, Model, serial_dot
+from rockfrac.parallel.layout import Layout, petsc
+
+
+class DistributedMatrix:
+    """The tangent of a distributed model: a PETSc MPIAIJ matrix in the partition's numbering."""
+
+    def __init__(self, mat, layout: Layout):
+        self.mat, self.layout = mat, layout
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        """A x on the owned entries of a full-length vector (x read on its owned entries)."""
+        y = self.layout.new_vec()
+        self.mat.mult(self.layout.to_vec(x), y)
+        out = np.zeros(self.layout.n)
+        out[self.layout.owned] = y.getArray()
+        return out
+
+
+@dataclass
+class DistributedModel(Model):
+    """The groups of one rank's elements on the partition's dofs (see the module note)."""
+
+    comm: Any = None  # the mpi4py communicator of the run
+    partition: Partition | None = None
+    rank: int = 0
+    layout: Layout = field(init=False, repr=False)
+    distributed = True
+
+    def __post_init__(self) -> None:
+        assert self.partition is not None and self.comm is not None
+        if any(g.n_extra for g in self.groups):
+            raise ValueError("a distributed model takes no extra unknowns (rigid-plastic multipliers)")
+        touched = [g.dofs.ravel() for g in self.groups]
+        self.layout = Layout(self.comm, self.partition, self.rank,
+                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])))
+        super().__post_init__()
+        self._local_csr()
+        self._matrix = self._preallocated()
+
+    def _local_csr(self) -> None:
+        """The local pattern's rows and columns of the local dofs, and where each entry comes from."""
+        local = self.layout.local
+        slots = self.pattern.matrix(np.arange(1.0, self.pattern.nnz + 1.0))
+        sub = sp.csr_matrix(slots[local][:, local])
+        sub.sort_indices()
+        PETSc = petsc()
+        self._slot = sub.data.astype(np.int64) - 1
+        self._csr = (sub.indptr.astype(PETSc.IntType), sub.indices.astype(PETSc.IntType))
+
+    def _preallocated(self):
+        """The MPIAIJ matrix with the exact pattern of the owned rows, every rank's elements included."""
+        PETSc, lay = petsc(), self.layout
+        indptr, indices = self._csr
+        rows = lay.local_petsc[np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))].astype(np.int64)
+        cols = lay.local_petsc[indices].astype(np.int64)
+        owner = lay.owner(rows)
+        sent = [(rows[owner == r], cols[owner == r]) for r in range(lay.size)]
+        got = lay.comm.alltoall(sent)
+        rows = np.concatenate([r for r, _ in got]) - lay.lo
+        cols = np.concatenate([c for _, c in got])
+        keys = np.unique(rows * lay.n + cols)
+        rows, cols = keys // lay.n, keys % lay.n
+        row_ptr = np.zeros(lay.hi - lay.lo + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rows, minlength=lay.hi - lay.lo), out=row_ptr[1:])
+        mat = PETSc.Mat().createAIJ(((lay.hi - lay.lo, lay.n), (lay.hi - lay.lo, lay.n)), comm=lay.comm)
+        mat.setPreallocationCSR((row_ptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)))
+        mat.setLGMap(lay.lgmap, lay.lgmap)
+        mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        mat.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
+        return mat
+
+    def set_dirichlet(self, dofs: np.ndarray) -> None:
+        super().set_dirichlet(dofs)
+        owned = self.layout.owned_mask
+        self._dirichlet_owned = self.dirichlet[owned[self.dirichlet]]
+        self._free_owned = self.free[owned[self.free]]
+        self._dirichlet_rows = self.layout.new[self._dirichlet_owned].astype(petsc().IntType)
+
+    def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
+        """The residual (on the local dofs) and the distributed tangent; the verdicts over all ranks."""
+        local = super().assemble(u, u_n, np.zeros_like(f_ext))  # the rank's own f_int, unreduced
+        verdicts = self.comm.allgather((local.ok, local.n_switched, local.local_residual, local.message))
+        f_int = self.layout.sum_local(local.f_int)
+        mat = self._matrix
+        mat.zeroEntries()
+        PETSc = petsc()
+        mat.setValuesLocalCSR(*self._csr, local.matrix.data[self._slot], addv=PETSc.InsertMode.ADD_VALUES)
+        mat.assemble()
+        return Assembled(f_int - f_ext, f_int, DistributedMatrix(mat, self.layout),
+                         all(v[0] for v in verdicts), sum(v[1] for v in verdicts),
+                         "; ".join(v[3] for v in verdicts if v[3]), max(v[2] for v in verdicts))
+
+    def apply_dirichlet(self, a):
+        """Zero the prescribed rows and columns of the distributed tangent, unit diagonal."""
+        a.mat.zeroRowsColumns(self._dirichlet_rows, diag=1.0)
+        return a
+
+    # -- reductions over the ranks ---------------------------------------------------------------
+    def _owned(self, part: str) -> np.ndarray:
+        return {"free": self._free_owned, "dirichlet": self._dirichlet_owned, "all": self.layout.owned}[part]
+
+    def dot(self, x: np.ndarray, y: np.ndarray, part: str = "free") -> float:
+        idx = self._owned(part)
+        return self.comm.allreduce(serial_dot(x[idx], y[idx]))
+
+    def gradient_dot(self, grad: np.ndarray, x: np.ndarray) -> float:
+        return self.comm.allreduce(serial_dot(grad, x))
+
+    def gradient_norm(self, grad: np.ndarray) -> float:
+        return math.sqrt(self.comm.allreduce(serial_dot(grad, grad)))
+
+    def reduce_all_finite(self, x: np.ndarray) -> bool:
+        return self.comm.allreduce(bool(np.all(np.isfinite(x[self.layout.local]))), op=_mpi().LAND)
+
+    def reduce_sum(self, value: Any) -> Any:
+        return self.comm.allreduce(value)
+
+    def reduce_any(self, flag: bool) -> bool:
+        return self.comm.allreduce(bool(flag), op=_mpi().LOR)
+
+    def reduce_min(self, value: float) -> float:
+        return self.comm.allreduce(value, op=_mpi().MIN)
+
+    # -- the groups' verdicts over the ranks --------------------------------------------------------
+    def event(self) -> tuple[float, float] | None:
+        pair = super().event()
+        before, after = pair if pair is not None else (math.inf, math.inf)
+        before, after = self.reduce_min(before), self.reduce_min(after)
+        return None if math.isinf(before) or math.isinf(after) else (before, after)
+
+    def implex_error(self) -> float | None:
+        err = super().implex_error()
+        worst = -self.reduce_min(-(err if err is not None else -math.inf))
+        return None if math.isinf(worst) else worst
+
+    def switch_to_implex(self) -> bool:
+        return self.reduce_any(super().switch_to_implex())
+
+
+def _mpi():
+    from mpi4py import MPI
+
+    return MPI

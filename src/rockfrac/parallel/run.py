@@ -1,0 +1,65 @@
+"""Run a case on the ranks of an MPI communicator: the same stepping, Newton and path following as a
+serial run, on a distributed model (:mod:`rockfrac.parallel.model`).
+
+Rank 0 partitions the split mesh (METIS) and sends the partition to the others; every rank builds
+its own groups and takes every step with the others (each collective call in the same order).
+The converged steps come to ``on_step`` on every rank with the displacements and internal forces
+valid on the rank's local dofs; :meth:`Layout.gather` assembles a whole vector.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from rockfrac.case.build import Built, Distribution, build
+from rockfrac.case.schema import Case, load_case
+from rockfrac.elements.base import ElementGroup
+from rockfrac.mesh.mesh import Mesh
+from rockfrac.mesh.partition import Partition, partition
+from rockfrac.parallel.model import DistributedModel
+from rockfrac.parallel.solvers import distributed_solver
+from rockfrac.runner import engine_options
+from rockfrac.solve.stepping import RunResult, StepInfo, run_stages
+
+
+def distribution(comm) -> Distribution:
+    """How ``comm``'s ranks share a case: rank 0's METIS partition, one part per rank."""
+    rank = comm.Get_rank()
+
+    def split(mesh: Mesh) -> Partition:
+        try:
+            part = partition(mesh, comm.Get_size()) if rank == 0 else None
+        except ValueError as err:
+            part = err  # type: ignore[assignment]  # every rank raises it, none waits for the others
+        part = comm.bcast(part, root=0)
+        if isinstance(part, ValueError):
+            raise part
+        return part
+
+    def make_model(mesh: Mesh, groups: list[ElementGroup], part: Partition) -> DistributedModel:
+        return DistributedModel(mesh.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,
+                                partition=part, rank=rank)
+
+    return Distribution(split, rank, make_model)
+
+
+def build_distributed(case: Case | str | Path, comm, path_label: str | None = None) -> Built:
+    """This rank's share of the case (CaseError, on every rank, for a case that cannot be split)."""
+    label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
+    if not isinstance(case, Case):
+        case = load_case(case)
+    return build(case, label, distribution(comm))
+
+
+def run_distributed(built: Built, on_step: Callable[[StepInfo], None],
+                    log: Callable[[str], None] = lambda s: None) -> RunResult:
+    """Run the stages of a distributed build with the case's [solver] options and its linear solver
+    ('auto': MUMPS's LU)."""
+    newton, stepping = engine_options(built)
+    solver = distributed_solver(built.case.solver.linear.value)
+    log(f"linear solver: {solver.name} on {built.model.comm.Get_size()} ranks")  # type: ignore[attr-defined]
+    return run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
+                      u0=built.program.u0, f0=built.program.f0)

@@ -1,0 +1,95 @@
+"""Linear solvers of a distributed model, through PETSc's options: MUMPS's parallel LU by default,
+GMRES with GAMG or hypre's BoomerAMG for large systems. The options each one sets are in its
+``options`` (the run names the solver)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rockfrac.parallel.layout import Layout, petsc
+from rockfrac.parallel.model import DistributedMatrix
+from rockfrac.solve.backend import SolverFailed
+
+
+class _Factor:
+    """A configured KSP on one distributed matrix: ``solve(b)`` as often as needed."""
+
+    def __init__(self, ksp, layout: Layout):
+        self._ksp, self._layout = ksp, layout
+        self.iterations = 0
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """x with A x = b (b read on the owned dofs), on the local dofs (owned and ghosts)."""
+        PETSc = petsc()
+        rhs = self._layout.to_vec(b)
+        x = rhs.duplicate()
+        try:
+            self._ksp.solve(rhs, x)
+        except PETSc.Error as err:
+            raise SolverFailed(f"PETSc KSP failed: {err}") from None
+        reason = self._ksp.getConvergedReason()
+        self.iterations = self._ksp.getIterationNumber()
+        if reason < 0:
+            raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {self.iterations} iterations)")
+        return self._layout.from_vec(x)
+
+
+class DistributedSolver:
+    """A KSP configured by PETSc options on the distributed tangent."""
+
+    name = ""
+    options: dict[str, str] = {}
+
+    def factorize(self, a: DistributedMatrix) -> _Factor:
+        PETSc = petsc()
+        ksp = PETSc.KSP().create(comm=a.layout.comm)
+        ksp.setOperators(a.mat)
+        prefix = f"rockfrac_{self.name.replace('-', '_')}_"
+        ksp.setOptionsPrefix(prefix)
+        opts = PETSc.Options()
+        for k, v in self.options.items():
+            opts[prefix + k] = v
+        ksp.setFromOptions()
+        try:
+            ksp.setUp()
+        except PETSc.Error as err:
+            raise SolverFailed(f"PETSc {self.name} set-up failed: {err}") from None
+        return _Factor(ksp, a.layout)
+
+    def solve(self, a: DistributedMatrix, b: np.ndarray) -> np.ndarray:
+        return self.factorize(a).solve(b)
+
+
+class MumpsLU(DistributedSolver):
+    """MUMPS's parallel LU (the default)."""
+
+    name = "petsc"
+    options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+
+
+class KrylovGAMG(DistributedSolver):
+    """GMRES(60) with PETSc's smoothed-aggregation AMG."""
+
+    name = "petsc-gamg"
+    options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
+               "ksp_max_it": "600", "pc_type": "gamg"}
+
+
+class KrylovHypre(DistributedSolver):
+    """GMRES(60) with hypre's BoomerAMG."""
+
+    name = "petsc-hypre"
+    options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
+               "ksp_max_it": "600", "pc_type": "hypre", "pc_hypre_type": "boomeramg"}
+
+
+DISTRIBUTED_SOLVERS = {s.name: s for s in (MumpsLU, KrylovGAMG, KrylovHypre)}
+
+
+def distributed_solver(name: str) -> DistributedSolver:
+    """The distributed solver for a [solver] linear name: 'auto' and 'petsc' are MUMPS's LU."""
+    key = "petsc" if name == "auto" else name
+    if key not in DISTRIBUTED_SOLVERS:
+        raise ValueError(f"[solver] linear = {name!r} is a serial solver; on several MPI ranks: "
+                         f"{', '.join(['auto'] + sorted(DISTRIBUTED_SOLVERS))}")
+    return DISTRIBUTED_SOLVERS[key]()

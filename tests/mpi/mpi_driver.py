@@ -1,0 +1,92 @@
+"""What the MPI tests run under ``mpiexec -n N``: ``python mpi_driver.py TASK CASE.json OUT.npz``.
+
+CASE.json holds a case dictionary (paths in it absolute). Rank 0 writes the results into OUT.npz;
+a CaseError is written there as ``error`` (raised on every rank, so none waits for the others).
+Tasks:
+- ``history``: run the case; per converged step its load factor, Newton iterations, control and
+  the displacements and internal forces gathered whole.
+- ``system``: assemble at a displacement field given in the case file's ``"u"``; the global
+  tangent (Dirichlet rows of the first stage applied) in rockfrac's numbering, gathered from every
+  rank's owned rows, and the residual; the ownership of cells and interface cells, and the ghost
+  values after a scatter.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+from mpi4py import MPI
+
+from rockfrac.case.schema import parse_case
+from rockfrac.errors import CaseError
+from rockfrac.parallel.run import build_distributed, run_distributed
+
+
+def history(built, comm) -> dict:
+    lay = built.model.layout
+    rows: dict[str, list] = {"lam": [], "iterations": [], "path": [], "u": [], "f_int": []}
+
+    def on_step(info) -> None:
+        rows["lam"].append(info.load_factor)
+        rows["iterations"].append(info.newton.iterations)
+        rows["path"].append(info.controlled_by == "path")
+        rows["u"].append(lay.gather(info.u))
+        rows["f_int"].append(lay.gather(info.f_int))
+
+    result = run_distributed(built, on_step)
+    out = {k: np.array(v) for k, v in rows.items()}
+    out["message"] = np.array(result.message)
+    return out
+
+
+def system(built, comm, u: np.ndarray) -> dict:
+    model, lay = built.model, built.model.layout
+    model.set_dirichlet(built.stages[0].dirichlet)
+    model.begin_step()
+    asm = model.assemble(u, u, np.zeros(model.n_dofs))
+    a = model.apply_dirichlet(asm.matrix).mat
+    indptr, cols, vals = a.getValuesCSR()
+    rows = lay.owned[np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))]
+    old = np.empty(lay.n, dtype=np.int64)
+    old[lay.new] = np.arange(lay.n)  # PETSc index -> rockfrac dof
+    parts = comm.gather((rows, old[cols], vals), root=0)
+    cells = np.concatenate([g.cell_ids for g in built.bulks] + [np.zeros(0, dtype=np.int64)])
+    pairs = np.concatenate([g.points.minus for g in built.cohesives] + [np.zeros(0, dtype=np.int64)])
+    owned_cells = comm.gather(cells, root=0)
+    owned_pairs = comm.gather(pairs, root=0)
+    # ghosts: a vector whose owned entries are 1 + the rockfrac dof, scattered to every local entry
+    probe = lay.from_vec(lay.to_vec(np.arange(1.0, lay.n + 1.0)))
+    ghost_error = comm.allreduce(float(np.abs(probe[lay.local] - (lay.local + 1.0)).max(initial=0.0)), op=MPI.MAX)
+    n_ghosts = comm.gather(int(lay.local.shape[0] - lay.owned.shape[0]), root=0)
+    out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error)}
+    if comm.rank == 0:
+        out["rows"] = np.concatenate([p[0] for p in parts])
+        out["cols"] = np.concatenate([p[1] for p in parts])
+        out["vals"] = np.concatenate([p[2] for p in parts])
+        out["cells"] = np.concatenate(owned_cells)
+        out["pairs"] = np.concatenate(owned_pairs)
+        out["n_ghosts"] = np.array(n_ghosts)
+        out["n_if_cells"] = np.array(built.mesh.interfaces.shape[0])
+        out["n_cells"] = np.array(built.mesh.cells.shape[0])
+    return out
+
+
+def main() -> None:
+    task, case_file, out_file = sys.argv[1:4]
+    comm = MPI.COMM_WORLD
+    data = json.loads(open(case_file).read())
+    u = np.array(data.pop("u")) if "u" in data else None
+    try:
+        built = build_distributed(parse_case(data, case_file), comm, case_file)
+        result = history(built, comm) if task == "history" else system(built, comm, u)
+    except CaseError as err:
+        result = {"error": np.array(str(err))}
+    result["ranks"] = np.array(comm.Get_size())
+    if comm.rank == 0:
+        np.savez(out_file, **result)
+
+
+if __name__ == "__main__":
+    main()

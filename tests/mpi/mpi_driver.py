@@ -45,7 +45,7 @@ def system(built, comm, u: np.ndarray) -> dict:
     model, lay = built.model, built.model.layout
     model.set_dirichlet(built.stages[0].dirichlet)
     model.begin_step()
-    asm = model.assemble(u, u, np.zeros(model.n_dofs))
+    asm = model.assemble(u, np.zeros(model.n_dofs), np.zeros(model.n_dofs))  # from the virgin state
     a = model.apply_dirichlet(asm.matrix).mat
     indptr, cols, vals = a.getValuesCSR()
     rows = lay.owned[np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))]

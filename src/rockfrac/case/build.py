@@ -172,7 +172,6 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         refuse_distributed(case, path)
         part = distribution.split(mesh)
         owned = part.cell_part == distribution.rank
-        set_cells = [cells[part.interface_part[cells] == distribution.rank] for cells in set_cells]
     try:
         bulks = make_bulk_groups(case, mesh, path, owned)
     except CaseError:
@@ -182,6 +181,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     cohesives: list = []
     for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
         points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+        if part is not None and distribution is not None:  # each point on the rank of its first interface cell
+            points = points.subset(part.interface_part[cells[points.cell]] == distribution.rank)
         cohesives += cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
     if distribution is None or part is None:
         model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)

@@ -80,6 +80,17 @@ class InterfacePoints:
         """Rotate global vectors (n_pts, dim) into the local frames."""
         return np.einsum("pij,pj->pi", self.frame, v)
 
+    def subset(self, keep: np.ndarray) -> InterfacePoints:
+        """The points where ``keep`` (a mask) holds, with the weights and frames they have among all
+        (one MPI rank's share of a surface); the cells keep the kept points' pairs (-1 elsewhere),
+        those left with none are dropped."""
+        new = np.full(self.n, -1, dtype=np.int64)
+        new[keep] = np.arange(int(np.count_nonzero(keep)))
+        seg_points = np.where(self.segment_points >= 0, new[np.maximum(self.segment_points, 0)], -1)
+        cells = np.flatnonzero((seg_points >= 0).any(axis=1))
+        return InterfacePoints(self.minus[keep], self.plus[keep], self.weight[keep], self.frame[keep], self.x[keep],
+                               self.cell[keep], self.segments[cells], seg_points[cells], self.segment_x[cells])
+
 
 def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
     """Merge the node pairs of interface cells (m0, m1, p0, p1) into nodal integration points.

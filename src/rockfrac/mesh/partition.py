@@ -3,8 +3,9 @@
 The graph's vertices are the bulk cells and the interface cells (after cohesive insertion), two of
 them adjacent where they share a node; an interface cell holds its minus and plus nodes, so it
 ties the cells on both of its sides together. ``pymetis.part_graph`` splits the graph into parts of
-equal element counts with a small cut. Each node belongs to the lowest part among the elements
-around it; the dofs are renumbered so that every part owns one contiguous block (``dim`` dofs per
+equal element counts with a small cut. Each node belongs to the lowest part among the bulk cells
+around it (every node of a split mesh is a corner of a bulk cell, so its owner assembles there);
+the dofs are renumbered so that every part owns one contiguous block (``dim`` dofs per
 node, in the order of the parts, the original node order within a part): the row layout of PETSc's
 distributed matrices and vectors.
 """
@@ -86,14 +87,13 @@ def partition(mesh: Mesh, n_parts: int) -> Partition:
         import pymetis
 
         graph = element_graph(mesh)
-        _, labels = pymetis.part_graph(n_parts, xadj=graph.indptr, adjncy=graph.indices)
+        _, labels = pymetis.part_graph(n_parts, pymetis.CSRAdjacency(graph.indptr, graph.indices))
         part = np.asarray(labels, dtype=np.int64)
         if np.unique(part).shape[0] != n_parts:  # METIS may leave a part empty on a tiny graph
             raise ValueError(f"METIS left a part empty splitting {n_el} elements into {n_parts} parts")
     node_part = np.full(mesh.n_nodes, n_parts, dtype=np.int64)
-    for elements, owner in ((mesh.cells, part[:n_cells]), (mesh.interfaces, part[n_cells:])):
-        np.minimum.at(node_part, elements.ravel(), np.repeat(owner, elements.shape[1]))
-    node_part[node_part == n_parts] = 0  # nodes of no element (none in a checked mesh)
+    np.minimum.at(node_part, mesh.cells.ravel(), np.repeat(part[:n_cells], mesh.cells.shape[1]))
+    node_part[node_part == n_parts] = 0  # nodes of no cell (none in a checked mesh)
     order = np.lexsort((np.arange(mesh.n_nodes), node_part))
     starts = np.searchsorted(node_part[order], np.arange(n_parts + 1))
     return Partition(n_parts, mesh.dim, part[:n_cells], part[n_cells:], node_part, order, starts)

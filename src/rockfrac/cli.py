@@ -17,10 +17,36 @@ from rockfrac.errors import CaseError, RunStopped
 console = Console(stderr=True, soft_wrap=True)
 
 
+def _mpi_size() -> int:
+    """The number of ranks this process was launched among (mpiexec's environment; 1 without it)."""
+    for key in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "MPI_LOCALNRANKS"):
+        if os.environ.get(key, "").isdigit():
+            return int(os.environ[key])
+    return 1
+
+
+def _distribution(size: int):
+    """This rank's share of an MPI run (None on one process); on the ranks other than 0 the console
+    is quiet (rank 0 reports)."""
+    if size <= 1:
+        return None
+    try:
+        from mpi4py import MPI
+
+        from rockfrac.parallel.run import distribution
+    except ImportError as err:
+        raise CaseError(f"rockfrac run on {size} MPI ranks needs mpi4py and petsc4py ({err}); `make test` builds "
+                        ".venv-mpi, a venv with Debian's python3-petsc4py-real and python3-mpi4py") from None
+    if MPI.COMM_WORLD.Get_rank() > 0:
+        console.quiet = True
+    return distribution(MPI.COMM_WORLD)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from rockfrac.case.schema import load_case
     from rockfrac.runner import run_case
 
+    distribution = _distribution(_mpi_size())
     if args.resume and args.overwrite:
         raise CaseError("--resume and --overwrite contradict each other: resume continues the run in --out, "
                         "overwrite deletes it")
@@ -38,11 +64,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
         console.print(escape(f"step {row['step']:4d} {row['stage']:<11s} {shown}  it={row['newton_iterations']}"),
                       highlight=False)
 
-    summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume,
-                       overwrite=args.overwrite,
-                       on_start=lambda: console.print(f"[bold]rockfrac run[/] {escape(str(args.case))} -> "
-                                                      f"{escape(str(args.out))}"),
-                       warn=lambda w: console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False))
+    try:
+        summary = run_case(case, args.out, progress=progress, path_label=str(args.case), resume=args.resume,
+                           overwrite=args.overwrite,
+                           on_start=lambda: console.print(f"[bold]rockfrac run[/] {escape(str(args.case))} -> "
+                                                          f"{escape(str(args.out))}"),
+                           warn=lambda w: console.print(f"[yellow]warning:[/] {escape(w)}", highlight=False),
+                           distribution=distribution)
+    except (CaseError, RunStopped):
+        raise  # raised alike on every rank
+    except BaseException as err:
+        if distribution is None or os.environ.get("ROCKFRAC_DEBUG"):
+            raise
+        from mpi4py import MPI  # one rank failed: the others would wait for it in a collective call
+
+        console.quiet = False
+        _error(f"rank {distribution.rank}: {type(err).__name__}: {err}; ending every rank")
+        MPI.COMM_WORLD.Abort(3)
+        raise
     if summary.stop_signal is not None:
         console.print(f"[yellow]stopped by {summary.stop_signal}[/] after {summary.result.steps} steps; every "
                       f"converged step is in {escape(str(summary.out))}", highlight=False)

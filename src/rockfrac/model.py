@@ -204,6 +204,23 @@ class Model:
         """The smallest of a value over the ranks (serial: the value)."""
         return value
 
+    def reduce_max(self, value: Any) -> Any:
+        """The largest of a value (a number or an array, entry by entry) over the ranks (serial: the value)."""
+        return value
+
+    def gather(self, x: np.ndarray) -> np.ndarray:
+        """The whole vector (a distributed model's ranks hold theirs valid on their own dofs only)."""
+        return x
+
+    def gather_records(self, records: dict[str, np.ndarray] | None, order: np.ndarray | None
+                       ) -> dict[str, np.ndarray] | None:
+        """The point records of a group over every rank, in the group's order (serial: as they are)."""
+        return records
+
+    def share(self, value: Any) -> Any:
+        """Rank 0's value on every rank (serial: the value)."""
+        return value
+
     def apply_dirichlet(self, a: sp.csr_matrix) -> sp.csr_matrix:
         """Zero prescribed rows and columns, unit diagonal (the increment there is set by the rhs)."""
         a.data[self._bc_hit] = 0.0

@@ -10,14 +10,14 @@ from __future__ import annotations
 import csv
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 import tomli_w
 
 from rockfrac.analytic import penalty_rule, plane_strain_modulus
-from rockfrac.case.build import Built, build, mean_cell_size
+from rockfrac.case.build import Built, Distribution, build, mean_cell_size
 from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
 from rockfrac.errors import CaseError, RunStopped
@@ -31,6 +31,7 @@ from rockfrac.output.observers import (
     Observer,
     PointsCsv,
     Progress,
+    Quiet,
     RunLog,
     Step,
     StopRules,
@@ -94,7 +95,8 @@ def case_warnings(built: Built) -> list[str]:
 def point_rows(built: Built, u: np.ndarray) -> dict[str, np.ndarray] | None:
     """Per-point quantities of the discontinuities (CSE node pairs, localized EDE cells), state named,
     concatenated over the surface groups (column set: the cohesive set or the EDE region)."""
-    parts = [r for r in (g.point_records(u) for g in built.model.groups) if r is not None]
+    model = built.model
+    parts = [r for g in model.groups if (r := model.gather_records(g.point_records(u), g.record_order())) is not None]
     if not parts:
         return None
     keys = set.intersection(*(set(p) for p in parts))
@@ -174,7 +176,8 @@ def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
 def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict], None] | None = None,
              path_label: str | None = None, resume: bool = False, overwrite: bool = False,
              warn: Callable[[str], None] | None = None, on_start: Callable[[], None] | None = None,
-             watch: Callable[[Built], list[Observer]] | None = None) -> RunSummary:
+             watch: Callable[[Built], list[Observer]] | None = None,
+             distribution: Distribution | None = None) -> RunSummary:
     """Run a validated case (or a case file) and write its outputs into ``out``.
 
     resume: continue from out/checkpoint.npz (written every [output] checkpoint_every steps) with the
@@ -185,14 +188,30 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     folder is ready, before the first step; warn: then called with each warning.
     SIGINT/SIGTERM end the run at the next step boundary (the summary's ``stop_signal`` says which).
     watch(built): more observers of the steps (e.g. the API's field snapshots), made once the model is built.
+    distribution: run as one rank of an MPI run (rockfrac.parallel): every rank takes every step,
+    rank 0 writes the outputs (from the ranks' gathered vectors and summed quantities).
     """
     label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
     if not isinstance(case, Case):
         case = load_case(case)
-    built = build(case, label)  # every input error surfaces here, before any step
+    if distribution is not None and resume:
+        raise CaseError(f"{label}: --resume does not run on several MPI ranks yet (no parallel checkpoints); run it "
+                        "on one process")
+    built = build(case, label, distribution)  # every input error surfaces here, before any step
+    model = built.model
+    lead = distribution is None or distribution.rank == 0  # the rank that writes
     history = make_history(built, label)
     case_text = tomli_w.dumps(built.case.model_dump(mode="json", exclude_none=True))  # the resolved case
-    out = prepare_output(out, OUTPUTS, overwrite=overwrite, resume=resume)
+    failed = None
+    if lead:
+        try:
+            out = prepare_output(out, OUTPUTS, overwrite=overwrite, resume=resume)
+        except CaseError as err:
+            failed = str(err)
+    failed = model.share(failed)  # the other ranks stop with rank 0
+    if failed is not None:
+        raise CaseError(failed)
+    out = Path(out)
     start: Position | None = None
     counters: dict[str, float] = {}
     if resume:
@@ -201,30 +220,33 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                          "f_prev": (start.f_int if start.f_int is not None else np.zeros(built.model.n_dofs))[
                              : history.n_u]})
     case_sha = checkpoint.text_sha256(case_text)
-    (out / "case.toml").write_text(case_text, encoding="utf-8")
+    if lead:
+        (out / "case.toml").write_text(case_text, encoding="utf-8")
     keep = start.count if start is not None else None
     # the peak magnitudes the stop rules have seen (checkpointed as run.stop_peak.<quantity>)
     peaks = {k.removeprefix("stop_peak."): float(v) for k, v in counters.items() if k.startswith("stop_peak.")}
     run = {"iters": int(counters.get("iters", 0)), "last": keep or 0}
-    log = RunLog(out / "run.log", keep, lambda: [line for g in built.model.groups for line in g.event_log()])
+    log: RunLog | Quiet = (RunLog(out / "run.log", keep, lambda: [line for g in built.model.groups
+                                                                   for line in g.event_log()]) if lead else Quiet())
     observers: list[Observer] = []
     try:
-        hist = HistoryCsv(out / "history.csv", history.columns, keep)
-        observers.append(hist)
-        if case.output.points and (built.cohesives or built.embeddeds):
+        hist = HistoryCsv(out / "history.csv", history.columns, keep) if lead else None
+        if hist is not None:
+            observers.append(hist)
+        if lead and case.output.points and (built.cohesives or built.embeddeds):
             # 3D surfaces have (t1, t2, n) components; a plane-strain hex8 specimen's cracks are 2D
             columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) else POINT_COLUMNS
             extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
             observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
-        if case.output.vtk:
+        if lead and case.output.vtk:
             from rockfrac.output.fields import step_output
 
             observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every,
                                              lambda u: step_output(built, u), keep))
         observers.append(log)
-        if progress is not None:
+        if progress is not None and lead:
             observers.append(Progress(progress))
-        if watch is not None:
+        if watch is not None and lead:
             observers.extend(watch(built))
         axial_peak = {"F_axial": float(counters.get("peak", -np.inf))}
 
@@ -232,8 +254,9 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work,
                     **{f"stop_peak.{q}": v for q, v in peaks.items()}}
 
-        observers.append(Checkpoints(out, case.output.checkpoint_every, built.model.groups, counts, hist, case_sha,
-                                     log))
+        if hist is not None and isinstance(log, RunLog):
+            observers.append(Checkpoints(out, case.output.checkpoint_every, built.model.groups, counts, hist, case_sha,
+                                         log))
         observers.append(StopRules(built.program.stops, peaks))
         if start is not None:
             log(f"resumed from the checkpoint at step {start.count}")
@@ -243,15 +266,20 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             if c.viscosity is not None:
                 log(f"cohesive surfaces ({c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
                     f"{c.viscosity:g} (pseudo-time, a stage = 1); its extra dissipation is history.csv's D_viscous")
-        if on_start is not None:
+        if distribution is not None:
+            log(f"MPI: {model.reduce_sum(1)} ranks, the mesh split by METIS ({built.mesh.cells.shape[0]} cells, "
+                f"{built.mesh.interfaces.shape[0]} interface cells)")
+        if on_start is not None and lead:
             on_start()
         warnings = case_warnings(built)
         for w in warnings:
             log(f"warning: {w}")
-            if warn is not None:
+            if warn is not None and lead:
                 warn(w)
 
         def on_step(info: StepInfo) -> None:
+            if distribution is not None:  # the whole vectors, for every rank's history row
+                info = replace(info, u=model.gather(info.u), f_int=model.gather(info.f_int))
             rec = point_rows(built, info.u)
             row = history.row(info, rec)
             run["iters"] += info.newton.iterations
@@ -265,12 +293,16 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         sol = case.solver
         t0 = time.perf_counter()
         with stop_on_signals() as request:
-            newton, stepping = engine_options(built, request)
-            solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
-                                 any(g.n_extra for g in built.model.groups))
+            stop = request if distribution is None else (lambda: model.reduce_any(request()))
+            newton, stepping = engine_options(built, stop)
+            if distribution is None:
+                solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
+                                     any(g.n_extra for g in built.model.groups))
+            else:
+                solver = distribution.make_solver(sol.linear.value)
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
             result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
-                                start=start, should_stop=request, u0=built.program.u0, f0=built.program.f0)
+                                start=start, should_stop=stop, u0=built.program.u0, f0=built.program.f0)
     except KeyboardInterrupt:
         log(f"end: interrupted (repeated SIGINT) after step {run['last']}; every converged step is kept")
         log.close()
@@ -305,13 +337,16 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             from rockfrac.output.fields import step_output
             from rockfrac.output.plots import magnification
 
-            mag = magnification(built, result.u)
+            u_all = model.gather(result.u)
+            mag = magnification(built, u_all)
             view = "3d" if built.mesh.dim == 3 and case.mesh.kind.value != "specimen" else "plane"
-            cracks = save_crack_map(out / "crack_map.png", step_output(built, result.u), mag,
-                                    title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed x{mag:g}",
-                                    view=view)
-            what = "crack segments" if view == "plane" else "yielded interface cells"
-            log(f"crack_map.png: step {result.steps}, {cracks.opening.size} {what}, deformed x{mag:g}")
+            fields = step_output(built, result.u)  # every rank's part (collective)
+            if lead:
+                cracks = save_crack_map(out / "crack_map.png", fields, mag, view=view,
+                                        title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed "
+                                              f"x{mag:g}")
+                what = "crack segments" if view == "plane" else "yielded interface cells"
+                log(f"crack_map.png: step {result.steps}, {cracks.opening.size} {what}, deformed x{mag:g}")
     finally:
         log.close()
     return RunSummary(result, out, wall, peak, run["iters"], built, warnings)

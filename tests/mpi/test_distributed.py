@@ -178,3 +178,62 @@ def test_what_does_not_run_distributed_is_refused_by_name(tmp_path, section, mes
         case["stages"][0].update(section["stages"][0])
     par = mpirun(2, "history", case, tmp_path)
     assert message in str(par["error"]) and "one process" in str(par["error"])
+
+
+def read_csv(path: Path) -> dict[str, list[str]]:
+    import csv
+
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    return {k: [r[k] for r in rows] for k in rows[0]}
+
+
+def assert_same_table(par: dict, ser: dict, what: str) -> None:
+    """Every column alike: text equal, numbers to 1e-9 of their column's largest magnitude (the
+    reactions of the largest reaction: a free node's is round-off; the energy balance's error of the
+    external work)."""
+    assert list(par) == list(ser) and len(par[next(iter(par))]) == len(ser[next(iter(ser))]), what
+    numbers = {}
+    for k in ser:
+        try:
+            numbers[k] = (np.array(par[k], dtype=float), np.array(ser[k], dtype=float))
+        except ValueError:
+            assert par[k] == ser[k], f"{what} {k}"
+    reactions = max((np.nanmax(np.abs(s)) for k, (_, s) in numbers.items() if k.startswith("R_")), default=0.0)
+    work = np.nanmax(np.abs(numbers["W_external"][1]), initial=0.0) if "W_external" in numbers else 0.0
+    for k, (p, s) in numbers.items():
+        scale = max(np.nanmax(np.abs(s), initial=0.0), reactions if k.startswith("R_") else 0.0,
+                    work if k == "energy_error" else 0.0, 1e-300)
+        np.testing.assert_array_equal(np.isnan(p), np.isnan(s))
+        assert np.nanmax(np.abs(p - s), initial=0.0) <= 1e-9 * scale, f"{what} {k}"
+
+
+@pytest.mark.parametrize("n", [2, 3])
+def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
+    """`mpiexec -n N rockfrac run` of the disc split under path control, with its stop rule and
+    monitor: history.csv, points.csv (in the serial order) and the crack map as a serial run's."""
+    from rockfrac.runner import run_case
+
+    case = splitting_case(2000)
+    case["output"] = {"picture": True}
+    case_file = tmp_path / "split.toml"
+    import tomli_w
+
+    case_file.write_text(tomli_w.dumps(case))
+    run_case(parse_case(case, str(case_file)), tmp_path / "serial")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    rockfrac = str(Path(sys.executable).parent / "rockfrac")
+    cmd = [shutil.which("mpiexec") or "mpiexec", "-n", str(n), rockfrac, "run", str(case_file), "--out",
+           str(tmp_path / "mpi"), "--quiet"]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    assert done.stderr.count("rockfrac run") == 1  # rank 0 reports, the others are quiet
+    for name in ("history.csv", "points.csv"):
+        assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
+    assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
+    log = (tmp_path / "mpi" / "run.log").read_text()
+    assert f"MPI: {n} ranks" in log and "linear solver: petsc" in log
+    # a folder holding a run: rank 0's refusal ends every rank, exit code 2, said once
+    again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    assert again.returncode == 2 and again.stderr.count("holds the outputs of another run") == 1, again.stderr

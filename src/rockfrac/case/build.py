@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -46,6 +47,7 @@ class Distribution:
     split: Callable[[Mesh], Partition]
     rank: int
     make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
+    make_solver: Callable[[str], Any]  # [solver] linear -> the distributed linear solver
 
 
 @dataclass
@@ -152,6 +154,11 @@ def refuse_distributed(case: Case, path: str) -> None:
                             "multipliers are not partitioned); form = 'ep' does")
     if case.initial is not None:
         raise CaseError(f"{path}: [initial]: an initial state (gravity, in-situ stress) {why}")
+    if case.output.vtk:
+        raise CaseError(f"{path}: [output] vtk = true: the ParaView series {why} (set vtk = false; history.csv, "
+                        "points.csv and crack_map.png are written)")
+    if case.output.checkpoint_every:
+        raise CaseError(f"{path}: [output] checkpoint_every: checkpoints {why} (set it to 0)")
     for k, st in enumerate(case.stages or []):
         if st.gravity is not None or st.in_situ:
             raise CaseError(f"{path}: [stages {k + 1}]: gravity and in_situ loads {why}")

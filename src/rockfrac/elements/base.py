@@ -164,6 +164,11 @@ class ElementGroup(ABC):
         """Committed per-point quantities of the discontinuities (points.csv), or None."""
         return None
 
+    def record_order(self) -> np.ndarray | None:
+        """Each record's place among those of the whole group (the group of one MPI rank holds some
+        of its points); None: the group has no point records."""
+        return None
+
     def elastic_energy(self, u: np.ndarray) -> float:
         """Elastic energy stored in the group at the committed state [J] (per unit thickness in 2D)."""
         return 0.0

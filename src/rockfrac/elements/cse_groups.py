@@ -147,6 +147,9 @@ class _CohesiveGroup(ElementGroup):
         rec["set"] = np.full(rec["x"].shape[0], self.name)
         return rec
 
+    def record_order(self) -> np.ndarray | None:
+        return self.points.index
+
     def jump_measure(self, n_dofs: int) -> Measure:
         """Path-following measure for the next step: g(u) = sum(w m . [[u]]) / sum(w) [m], and dg/du.
 

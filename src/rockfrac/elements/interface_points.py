@@ -31,6 +31,11 @@ class InterfacePoints:
     segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), dtype=np.int64))
     segment_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     segment_x: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))  # (k, 2, 2) ends of each cell [m]
+    index: np.ndarray | None = None  # (n_pts,) each point's place among all of the surface's (a subset's)
+
+    def __post_init__(self) -> None:
+        if self.index is None:
+            self.index = np.arange(self.minus.shape[0])
 
     @property
     def n(self) -> int:
@@ -88,8 +93,10 @@ class InterfacePoints:
         new[keep] = np.arange(int(np.count_nonzero(keep)))
         seg_points = np.where(self.segment_points >= 0, new[np.maximum(self.segment_points, 0)], -1)
         cells = np.flatnonzero((seg_points >= 0).any(axis=1))
+        assert self.index is not None
         return InterfacePoints(self.minus[keep], self.plus[keep], self.weight[keep], self.frame[keep], self.x[keep],
-                               self.cell[keep], self.segments[cells], seg_points[cells], self.segment_x[cells])
+                               self.cell[keep], self.segments[cells], seg_points[cells], self.segment_x[cells],
+                               self.index[keep])
 
 
 def interface_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:

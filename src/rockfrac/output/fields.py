@@ -19,7 +19,7 @@ def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
         out["region"][g.cell_ids] = k
         for name, values in g.cell_fields(u).items():
             out[name][g.cell_ids] = values
-    return out
+    return {name: built.model.reduce_sum(v) for name, v in out.items()}  # each cell on one rank
 
 
 def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp: np.ndarray):
@@ -35,15 +35,17 @@ def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp:
 
 def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
     """Per interface cell: the mean of its node-pair points (jump, traction, strengths, state), the
-    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D)."""
+    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); the sums over the points of every
+    rank of a distributed model."""
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
     n_if, half = cells.shape[0], cells.shape[1] // 2
     comps = ("t", "n") if mesh.dim == 2 else ("t1", "t2", "n")  # the local frame
     d = len(comps)
     sums = {"jump": np.zeros((n_if, d)), "traction": np.zeros((n_if, d)), "plastic_jump": np.zeros((n_if, d))}
-    for name in dict.fromkeys(n for g in built.cohesives for n in g.law.record_names):
-        sums[name] = np.full(n_if, np.nan)  # NaN where the cell's law has no such quantity
+    written = {name: np.zeros(n_if, dtype=np.int8) for g in built.cohesives for name in g.law.record_names}
+    for name in written:
+        sums[name] = np.zeros(n_if)
     count = np.zeros(n_if)
     state = np.full(n_if, -1, dtype=np.int8)
     for g in built.cohesives:
@@ -58,11 +60,16 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
         for a, b in ((j, half + j) for j in range(half)):  # the node pairs of each interface cell
             idx, hit = _pair_index(g.points.minus, g.points.plus, n, cells[:, a], cells[:, b])
             for name, v in vals.items():
-                if name in g.law.record_names:  # start from 0 where this law writes
-                    sums[name][hit] = np.where(np.isnan(sums[name][hit]), 0.0, sums[name][hit])
+                if name in g.law.record_names:
+                    written[name][hit] = 1
                 sums[name][hit] += v[idx[hit]]
             count[hit] += 1
             state[hit] = np.maximum(state[hit], st[idx[hit]])
+    model = built.model
+    sums = {name: model.reduce_sum(v) for name, v in sums.items()}
+    count, state = model.reduce_sum(count), model.reduce_max(state)
+    for name, w in written.items():  # NaN where the cell's law has no such quantity
+        sums[name][model.reduce_max(w) == 0] = np.nan
     with np.errstate(invalid="ignore", divide="ignore"):
         out = {name: (v.T / count).T for name, v in sums.items()}  # NaN where no point (a crack tip pair)
     out["state"] = state
@@ -102,7 +109,7 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
 def step_output(built, u: np.ndarray) -> StepFields:
     """The ParaView fields of the committed state at displacement u."""
     mesh = built.mesh
-    disp = u[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
+    disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
     return step_fields(
         mesh.nodes, mesh.cells, mesh.cell_type,

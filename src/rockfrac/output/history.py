@@ -61,8 +61,10 @@ def axial_columns(u: np.ndarray, f_int: np.ndarray, axial_dofs: np.ndarray, thic
 MEANS = ("jump_p_norm", "chi", "c", "tan_phi", "tan_psi")  # point records averaged into the history
 
 
-def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str, ...] = MEANS) -> dict:
-    """Means of the discontinuities' point records, counts, the embedded event and bulk plasticity."""
+def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str, ...] = MEANS,
+                  model: Model | None = None) -> dict:
+    """Means of the discontinuities' point records, counts, the embedded event and bulk plasticity
+    (rec: every point's; the groups' own quantities summed over the ranks of a distributed ``model``)."""
     row: dict = {}
     if rec is not None and rec["state"].size:
         for k in means:
@@ -71,14 +73,25 @@ def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str
         row["n_plastic"] = int(np.sum(rec["state"] == "plastic"))
     elif rec is not None:
         row["n_plastic"] = 0
+    if model is None or not model.distributed:
+        events = [e for g in groups if (e := g.committed_event()) is not None]
+        if events:
+            row["det_ratio"] = min(events)
+            row["n_localized"] = int(sum(g.localized_count() for g in groups))
+        solids = [g for g in groups if isinstance(g, SolidGroup)]
+        fractions = [(f, g.wdet.size) for g in solids if (f := g.plastic_fraction()) is not None]
+        if fractions:
+            row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
+        return row
     events = [e for g in groups if (e := g.committed_event()) is not None]
-    if events:
-        row["det_ratio"] = min(events)
-        row["n_localized"] = int(sum(g.localized_count() for g in groups))
+    if model.reduce_any(bool(events)):
+        row["det_ratio"] = model.reduce_min(min(events, default=np.inf))
+        row["n_localized"] = int(model.reduce_sum(sum(g.localized_count() for g in groups)))
     solids = [g for g in groups if isinstance(g, SolidGroup)]
     fractions = [(f, g.wdet.size) for g in solids if (f := g.plastic_fraction()) is not None]
-    if fractions:
-        row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
+    if model.reduce_any(bool(fractions)):
+        row["bulk_plastic"] = (model.reduce_sum(float(sum(f * n for f, n in fractions)))
+                               / model.reduce_sum(float(sum(n for _, n in fractions))))
     return row
 
 
@@ -106,7 +119,7 @@ class History:
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
         extra = [m for m in self.means if m not in CRACK]
         self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
-        self.viscous = any(g.viscous_energy() is not None for g in model.groups)
+        self.viscous = model.reduce_any(any(g.viscous_energy() is not None for g in model.groups))
         self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + extra + ["time"]
                         + group_cols + [c for m in monitors for c in m.columns] + ENERGY
                         + (["D_viscous"] if self.viscous else []))
@@ -127,10 +140,11 @@ class History:
         return [m.note for m in self.monitors]
 
     def elastic_energy(self, u: np.ndarray) -> float:
-        return sum(g.elastic_energy(u) for g in self.model.groups) / self.thickness
+        """[J, per unit thickness in 2D] (u: valid on the rank's dofs; the groups' sums over the ranks)."""
+        return self.model.reduce_sum(sum(g.elastic_energy(u) for g in self.model.groups)) / self.thickness
 
     def dissipated(self) -> float:
-        return sum(g.dissipated_energy() for g in self.model.groups) / self.thickness
+        return self.model.reduce_sum(sum(g.dissipated_energy() for g in self.model.groups)) / self.thickness
 
     def state(self) -> dict[str, np.ndarray]:
         return {"work": np.array(self.work), "u_prev": self.u_prev, "f_prev": self.f_prev}
@@ -145,7 +159,7 @@ class History:
         row = step_columns(info)
         if self.axial_dofs is not None:
             row.update(axial_columns(info.u, info.f_int, self.axial_dofs, self.thickness))
-        row.update(crack_columns(self.model.groups, rec, self.means))
+        row.update(crack_columns(self.model.groups, rec, self.means, self.model))
         row["time"] = info.stage_index + info.load_factor
         u = info.u[: self.n_u].reshape(-1, self.dim)
         f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)
@@ -169,11 +183,13 @@ class History:
         e_el, dissipated = self.elastic_energy(info.u), self.dissipated()
         row.update(W_external=self.work, E_elastic=e_el, D_dissipated=dissipated,
                    energy_error=self.work - (e_el - self.e0) - dissipated,
-                   D_surface_law=sum(g.surface_energy() for g in self.model.groups) / self.thickness)
+                   D_surface_law=self.model.reduce_sum(sum(g.surface_energy() for g in self.model.groups))
+                   / self.thickness)
         if self.viscous:
             row["D_viscous"] = self.viscous_dissipated()
         return row
 
     def viscous_dissipated(self) -> float:
         """The dissipation the viscous regularisations added (D_viscous) [J, per unit thickness in 2D]."""
-        return sum(e for g in self.model.groups if (e := g.viscous_energy()) is not None) / self.thickness
+        return self.model.reduce_sum(sum(e for g in self.model.groups if (e := g.viscous_energy()) is not None)
+                                     ) / self.thickness

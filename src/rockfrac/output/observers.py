@@ -82,6 +82,13 @@ class VtkSeriesWriter(Observer):
             self.series.write(step.info.step, float(step.info.step), self.fields(step.info.u))
 
 
+class Quiet(Observer):
+    """The log of an MPI rank other than 0: it says nothing (rank 0 writes run.log)."""
+
+    def __call__(self, line: str) -> None:
+        pass
+
+
 class RunLog(Observer):
     """run.log, line-buffered: one line per step, the Newton iterations, events, checkpoints."""
 

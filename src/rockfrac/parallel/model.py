@@ -141,14 +141,39 @@ class DistributedModel(Model):
     def reduce_all_finite(self, x: np.ndarray) -> bool:
         return self.comm.allreduce(bool(np.all(np.isfinite(x[self.layout.local]))), op=_mpi().LAND)
 
-    def reduce_sum(self, value: Any) -> Any:
-        return self.comm.allreduce(value)
-
     def reduce_any(self, flag: bool) -> bool:
         return self.comm.allreduce(bool(flag), op=_mpi().LOR)
 
     def reduce_min(self, value: float) -> float:
         return self.comm.allreduce(value, op=_mpi().MIN)
+
+    def reduce_sum(self, value: Any) -> Any:
+        if isinstance(value, np.ndarray):
+            out = np.empty_like(value)
+            self.comm.Allreduce(np.ascontiguousarray(value), out, op=_mpi().SUM)
+            return out
+        return self.comm.allreduce(value)
+
+    def reduce_max(self, value: Any) -> Any:
+        if isinstance(value, np.ndarray):
+            out = np.empty_like(value)
+            self.comm.Allreduce(np.ascontiguousarray(value), out, op=_mpi().MAX)
+            return out
+        return self.comm.allreduce(value, op=_mpi().MAX)
+
+    def gather(self, x: np.ndarray) -> np.ndarray:
+        return self.layout.gather(x)
+
+    def gather_records(self, records: dict[str, np.ndarray] | None, order: np.ndarray | None
+                       ) -> dict[str, np.ndarray] | None:
+        parts = [(r, o) for r, o in self.comm.allgather((records, order)) if r is not None]
+        if not parts:
+            return None
+        place = np.argsort(np.concatenate([o for _, o in parts]), kind="stable")
+        return {k: np.concatenate([r[k] for r, _ in parts])[place] for k in parts[0][0]}
+
+    def share(self, value: Any) -> Any:
+        return self.comm.bcast(value, root=0)
 
     # -- the groups' verdicts over the ranks --------------------------------------------------------
     def event(self) -> tuple[float, float] | None:

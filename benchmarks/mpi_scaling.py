@@ -1,0 +1,188 @@
+"""MPI scaling on this machine (issue 17): 1 and 2 ranks, a 2D and a 3D problem of 1e6 dofs.
+
+One command: ``make mpi-scaling`` (``.venv-mpi/bin/python benchmarks/mpi_scaling.py``, about 30
+minutes). Each run is its own ``mpiexec -n R`` (its own peak memory per rank):
+
+- **2D**: the paper's EP specimen (elastic blocks, the paper's law on the inclined crack, penalty
+  1e12 Pa/m) refined to ``nx`` x ``ny`` quad4 cells per block; confinement, then 5 axial steps past
+  the crack's activation (located as an event, then softening): MUMPS's parallel LU ('petsc').
+- **3D**: a unit box of n^3 hex8 cells, nonassociative Drucker-Prager, on rollers, shortened along z
+  by 2 mm in 4 steps (it yields in the third): GMRES + GAMG ('petsc-gamg').
+
+Rows: ``serial`` (rockfrac's serial engine with the same PETSc solver on one process: the overhead
+of the distributed path is the ratio to the 1-rank row), then the distributed engine on 1 and 2
+ranks: strong scaling (the same size on 1 and 2 ranks) and weak scaling (half the size on 1 rank).
+Times: set-up (case to model: mesh, partition, groups, pattern, preallocation), assembly (every
+residual and tangent, with the ranks' sums and the matrix's insertion), solve (factorizations and
+solves), Newton iterations, the largest resident memory of a rank. Machine and load are recorded
+with every row; results go to ``benchmarks/results/mpi_scaling.json`` and the "MPI scaling" table
+of ``benchmarks/README.md``. ``--quick``: small sizes, prints only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+
+def case_2d(dofs: float) -> dict:
+    """The paper's EP specimen with about ``dofs`` unknowns (two blocks of nx x 2 nx cells)."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import paper_case
+
+    nx = max(2, round((dofs / 8) ** 0.5))
+    case = paper_case("ep", 1e12, axial_steps=5, axial_displacement=0.5e-3)
+    case["mesh"].update(nx=nx, ny=2 * nx)
+    case["solver"] = {"linear": "petsc"}
+    case["output"] = {"picture": False, "points": False}
+    return case
+
+
+def case_3d(dofs: float, folder: Path) -> dict:
+    from rockfrac.mesh import rock_tests as rt
+
+    n = max(2, round((dofs / 3) ** (1 / 3)) - 1)
+    msh = rt.box(folder / "box.msh", (1.0, 1.0, 1.0), (n, n, n), element="hex8")
+    return {"title": "box", "mesh": {"kind": "gmsh", "file": str(msh)},
+            "bulk": {"model": "drucker_prager", "E": 2e10, "nu": 0.25, "beta": 0.6, "b": 0.2, "kappa0": 1e7},
+            "stages": [{"name": "press", "steps": 4, "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
+                                                                      "bottom": {"z": 0.0}, "top": {"z": -2e-3}}}],
+            "solver": {"linear": "petsc-gamg"}, "output": {"picture": False, "points": False}}
+
+
+def child(problem: str, dofs: float, serial: bool, out: Path) -> None:
+    """One run (under mpiexec unless serial): its numbers into ``out`` (rank 0)."""
+    import numpy as np
+
+    from rockfrac.case.build import build
+    from rockfrac.case.schema import parse_case
+    from rockfrac.runner import engine_options
+    from rockfrac.solve.linear import make_solver
+    from rockfrac.solve.stepping import run_stages
+
+    folder = Path(tempfile.mkdtemp())
+    comm = None
+    if not serial:
+        from mpi4py import MPI
+
+        comm = MPI.COMM_WORLD
+    if comm is None or comm.rank == 0:
+        case = case_2d(dofs) if problem == "2d" else case_3d(dofs, folder)
+    else:
+        case = None
+    if comm is not None:
+        case = comm.bcast(case, root=0)
+    case_obj = parse_case(case, problem)
+    t0 = time.perf_counter()
+    if serial:
+        built = build(case_obj)
+        solver = make_solver(case["solver"]["linear"], built.mesh.nodes, built.model.n_dofs)
+    else:
+        from rockfrac.parallel.run import build_distributed
+        from rockfrac.parallel.solvers import distributed_solver
+
+        built = build_distributed(case_obj, comm)
+        solver = distributed_solver(case["solver"]["linear"])
+    t_setup = time.perf_counter() - t0
+    stats = {"assembly": 0.0, "solve": 0.0, "iterations": 0, "steps": 0}
+
+    def on_step(info) -> None:
+        stats["assembly"] += info.newton.time_assembly
+        stats["solve"] += info.newton.time_solve
+        stats["iterations"] += info.newton.iterations
+        stats["steps"] += 1
+
+    newton, stepping = engine_options(built)
+    t0 = time.perf_counter()
+    result = run_stages(built.model, built.stages, solver, newton, stepping, on_step,  # type: ignore[arg-type]
+                        u0=built.program.u0, f0=built.program.f0)
+    t_run = time.perf_counter() - t0
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # GiB (ru_maxrss in KiB)
+    ranks = 1 if comm is None else comm.Get_size()
+    rss_all = [rss] if comm is None else comm.gather(rss, root=0)
+    local = {"assembly": stats["assembly"], "solve": stats["solve"]}
+    if comm is not None:
+        local = {k: comm.allreduce(v, op=MPI.MAX) for k, v in local.items()}  # the slowest rank's
+    if comm is None or comm.rank == 0:
+        row = {"problem": problem, "engine": "serial" if serial else "distributed", "ranks": ranks,
+               "dofs": int(built.model.n_dofs), "completed": bool(result.completed), "message": result.message,
+               "steps": stats["steps"], "newton_iterations": stats["iterations"], "setup_s": round(t_setup, 2),
+               "assembly_s": round(local["assembly"], 2), "solve_s": round(local["solve"], 2),
+               "run_s": round(t_run, 2), "rss_gib_per_rank": [round(r, 2) for r in rss_all],
+               "solver": case["solver"]["linear"], "u_norm": float(np.linalg.norm(built.model.gather(result.u)))}
+        out.write_text(json.dumps(row))
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def launch(problem: str, dofs: float, ranks: int, serial: bool, timeout: float) -> dict:
+    out = Path(tempfile.mkdtemp()) / "row.json"
+    me = [sys.executable, str(Path(__file__).resolve()), "--child", problem, str(dofs), str(out)]
+    if serial:
+        cmd = me + ["--serial"]
+    else:
+        cmd = [shutil.which("mpiexec") or "mpiexec", "-n", str(ranks)] + me
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               NUMBA_NUM_THREADS="1")
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    try:
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"problem": problem, "ranks": ranks, "engine": "serial" if serial else "distributed",
+                "target_dofs": dofs, "failed": f"timeout after {timeout:.0f} s"}
+    if done.returncode != 0 or not out.exists():
+        return {"problem": problem, "ranks": ranks, "engine": "serial" if serial else "distributed",
+                "target_dofs": dofs, "failed": (done.stderr or done.stdout)[-800:]}
+    row = json.loads(out.read_text())
+    row.update(wall_s=round(time.perf_counter() - t0, 2), load_before=round(load, 2),
+               load_after=round(os.getloadavg()[0], 2))
+    return row
+
+
+PLAN = {  # problem -> [(dofs, ranks, serial)]
+    "2d": [(1e6, 1, True), (1e6, 1, False), (1e6, 2, False), (5e5, 1, False)],
+    "3d": [(1e6, 1, True), (1e6, 1, False), (1e6, 2, False), (5e5, 1, False)],
+}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
+    ap.add_argument("--serial", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="small sizes, print only")
+    ap.add_argument("--problems", nargs="+", default=["2d", "3d"])
+    ap.add_argument("--timeout", type=float, default=3600.0)
+    args = ap.parse_args()
+    if args.child:
+        child(args.child[0], float(args.child[1]), args.serial, Path(args.child[2]))
+        return
+    machine = {"machine": platform.node(), "cpu": platform.processor() or platform.machine(),
+               "cores": os.cpu_count(), "python": platform.python_version(), "date": time.strftime("%Y-%m-%d %H:%M")}
+    rows = []
+    for problem in args.problems:
+        for dofs, ranks, serial in PLAN[problem]:
+            row = launch(problem, dofs / 50 if args.quick else dofs, ranks, serial, args.timeout)
+            row.update(machine)
+            print(json.dumps(row), flush=True)
+            rows.append(row)
+    if not args.quick:
+        path = HERE / "results" / "mpi_scaling.json"
+        path.write_text(json.dumps(rows, indent=1))
+        print(f"written {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -19,13 +19,16 @@ class LinearSolverName(str, Enum):
     gmres_amg = "gmres-amg"
     petsc = "petsc"
     petsc_gamg = "petsc-gamg"
+    petsc_hypre = "petsc-hypre"
 
 
 class SolverSection(_Section):
     linear: LinearSolverName = Field(LinearSolverName.auto, strict=False,
                                      description="'auto' (the fastest installed: pardiso, mumps, superlu), "
                                      "'superlu' (SciPy), 'pardiso' (needs pypardiso), 'mumps' (needs "
-                                     "python-mumps) or 'gmres-amg' (iterative, needs pyamg)")
+                                     "python-mumps), 'gmres-amg' (iterative, needs pyamg), or with petsc4py 'petsc' (MUMPS's LU), "
+                                     "'petsc-gamg' or 'petsc-hypre' (GMRES + AMG); on several MPI ranks 'auto' is "
+                                     "'petsc'")
 
     @model_validator(mode="after")
     def _solver_installed(self) -> SolverSection:

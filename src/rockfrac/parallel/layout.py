@@ -26,8 +26,9 @@ def petsc():
 class Layout:
     """One rank's dofs on the partition: owned (a contiguous PETSc block) and local (owned + ghosts)."""
 
-    def __init__(self, comm, partition: Partition, rank: int, local: np.ndarray):
-        """local: the rockfrac dofs this rank's elements touch (sorted or not)."""
+    def __init__(self, comm, partition: Partition, rank: int, local: np.ndarray, nodes: np.ndarray):
+        """local: the rockfrac dofs this rank's elements touch (sorted or not); nodes: the mesh's
+        coordinates (the owned ones are kept: the AMG's rigid-body modes)."""
         PETSc = petsc()
         self.comm, self.rank, self.size = comm, rank, comm.Get_size()
         self.n = partition.n_dofs
@@ -41,6 +42,7 @@ class Layout:
         missing = np.setdiff1d(self.owned, self.local)
         if missing.size:  # an owned dof no element of the rank touches: not a partition of this mesh
             raise ValueError(f"rank {rank} owns dofs {missing[:5].tolist()} that none of its elements touches")
+        self.coordinates = nodes[self.owned[::partition.dim] // partition.dim]  # owned nodes, PETSc order
         self.owned_mask = np.zeros(self.n, dtype=np.bool_)
         self.owned_mask[self.owned] = True
         self.lgmap = PETSc.LGMap().create(self.local_petsc, comm=comm)
@@ -83,6 +85,14 @@ class Layout:
         v.assemblyBegin()
         v.assemblyEnd()
         return self.from_vec(v)
+
+    def rigid_modes(self):
+        """The rigid-body modes of the owned nodes (PETSc's orthonormal near-null space)."""
+        PETSc = petsc()
+        dim = self.coordinates.shape[1]
+        x = PETSc.Vec().createWithArray(np.ascontiguousarray(self.coordinates.ravel()), size=(self.hi - self.lo, self.n),
+                                        bsize=dim, comm=self.comm)
+        return PETSc.NullSpace().createRigidBody(x)
 
     def gather(self, x: np.ndarray) -> np.ndarray:
         """The full vector on every rank, each entry from its owner (output, tests)."""

@@ -52,16 +52,17 @@ class DistributedModel(Model):
     comm: Any = None  # the mpi4py communicator of the run
     partition: Partition | None = None
     rank: int = 0
+    nodes: np.ndarray | None = None  # the mesh's coordinates [m]
     layout: Layout = field(init=False, repr=False)
     distributed = True
 
     def __post_init__(self) -> None:
-        assert self.partition is not None and self.comm is not None
+        assert self.partition is not None and self.comm is not None and self.nodes is not None
         if any(g.n_extra for g in self.groups):
             raise ValueError("a distributed model takes no extra unknowns (rigid-plastic multipliers)")
         touched = [g.dofs.ravel() for g in self.groups]
         self.layout = Layout(self.comm, self.partition, self.rank,
-                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])))
+                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
         super().__post_init__()
         self._local_csr()
         self._matrix = self._preallocated()
@@ -91,7 +92,8 @@ class DistributedModel(Model):
         rows, cols = keys // lay.n, keys % lay.n
         row_ptr = np.zeros(lay.hi - lay.lo + 1, dtype=np.int64)
         np.cumsum(np.bincount(rows, minlength=lay.hi - lay.lo), out=row_ptr[1:])
-        mat = PETSc.Mat().createAIJ(((lay.hi - lay.lo, lay.n), (lay.hi - lay.lo, lay.n)), comm=lay.comm)
+        mat = PETSc.Mat().createAIJ(((lay.hi - lay.lo, lay.n), (lay.hi - lay.lo, lay.n)), bsize=self.dim,
+                                    comm=lay.comm)
         mat.setPreallocationCSR((row_ptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)))
         mat.setLGMap(lay.lgmap, lay.lgmap)
         mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)

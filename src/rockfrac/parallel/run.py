@@ -41,7 +41,7 @@ def distribution(comm) -> Distribution:
 
     def make_model(mesh: Mesh, groups: list[ElementGroup], part: Partition) -> DistributedModel:
         return DistributedModel(mesh.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,
-                                partition=part, rank=rank)
+                                partition=part, rank=rank, nodes=mesh.nodes)
 
     return Distribution(split, rank, make_model, distributed_solver)
 

@@ -1,6 +1,7 @@
 """Linear solvers of a distributed model, through PETSc's options: MUMPS's parallel LU by default,
-GMRES with GAMG or hypre's BoomerAMG for large systems. The options each one sets are in its
-``options`` (the run names the solver)."""
+GMRES with GAMG (the rigid-body modes of the owned nodes as its near-null space) or hypre's
+BoomerAMG for large systems, preconditioned on the right (the tolerance is on the true residual).
+The options each one sets are in its ``options`` (the run names the solver)."""
 
 from __future__ import annotations
 
@@ -39,9 +40,12 @@ class DistributedSolver:
 
     name = ""
     options: dict[str, str] = {}
+    rigid_modes = False  # give the preconditioner the rigid-body modes as its near-null space
 
     def factorize(self, a: DistributedMatrix) -> _Factor:
         PETSc = petsc()
+        if self.rigid_modes:
+            a.mat.setNearNullSpace(a.layout.rigid_modes())
         ksp = PETSc.KSP().create(comm=a.layout.comm)
         ksp.setOperators(a.mat)
         prefix = f"rockfrac_{self.name.replace('-', '_')}_"
@@ -68,11 +72,12 @@ class MumpsLU(DistributedSolver):
 
 
 class KrylovGAMG(DistributedSolver):
-    """GMRES(60) with PETSc's smoothed-aggregation AMG."""
+    """GMRES(60) with PETSc's smoothed-aggregation AMG, the rigid-body modes as near-null space."""
 
     name = "petsc-gamg"
+    rigid_modes = True
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
-               "ksp_max_it": "600", "pc_type": "gamg"}
+               "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "gamg"}
 
 
 class KrylovHypre(DistributedSolver):
@@ -80,7 +85,8 @@ class KrylovHypre(DistributedSolver):
 
     name = "petsc-hypre"
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
-               "ksp_max_it": "600", "pc_type": "hypre", "pc_hypre_type": "boomeramg"}
+               "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "hypre",
+               "pc_hypre_type": "boomeramg"}
 
 
 DISTRIBUTED_SOLVERS = {s.name: s for s in (MumpsLU, KrylovGAMG, KrylovHypre)}

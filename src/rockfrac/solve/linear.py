@@ -33,7 +33,7 @@ from rockfrac.solve.backend import (  # noqa: F401 (the contract and SuperLU, re
     is_symmetric,
 )
 from rockfrac.solve.iterative import Handover, KrylovAMG, rigid_modes_3d  # noqa: F401 (re-exported)
-from rockfrac.solve.petsc import PetscDirect, PetscGAMG
+from rockfrac.solve.petsc import PetscDirect, PetscGAMG, PetscHypre
 
 
 class _Pattern:
@@ -356,7 +356,7 @@ class Mumps(_Backend):
 
 
 SOLVERS = {"pardiso": Pardiso, "mumps": Mumps, "superlu": SuperLU, "gmres-amg": KrylovAMG, "petsc": PetscDirect,
-           "petsc-gamg": PetscGAMG}
+           "petsc-gamg": PetscGAMG, "petsc-hypre": PetscHypre}
 
 
 def available() -> list[str]:
@@ -404,6 +404,8 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
             return PetscDirect(coordinates)
         if name == "petsc-gamg":
             return PetscGAMG(coordinates)
+        if name == "petsc-hypre":
+            return PetscHypre(coordinates)
         return SOLVERS[name]()
     except ImportError as err:
         raise ValueError(f"linear solver {name!r} is not installed here ({err}); available: {available()}") from None

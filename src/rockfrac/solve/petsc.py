@@ -2,7 +2,15 @@
 
 - ``petsc``: a direct LU of PETSc's AIJ matrix by MUMPS (``-pc_factor_mat_solver_type mumps``);
 - ``petsc-gamg``: GMRES(60) preconditioned by PETSc's smoothed-aggregation AMG (GAMG), with the
-  six rigid-body modes of a 3D mesh as near-null space, relative residual 1e-11.
+  six rigid-body modes of a 3D mesh as near-null space, relative residual 1e-11;
+- ``petsc-hypre``: GMRES(60) preconditioned by hypre's BoomerAMG (classical AMG, on the 3 x 3
+  nodal blocks in 3D), relative residual 1e-11.
+
+Both Krylov solvers precondition on the right, so that their tolerance is on the true residual
+(a singular preconditioner cannot make a left-preconditioned residual small on a system without
+a solution).
+
+The same names run on several MPI ranks (:mod:`rockfrac.parallel.solvers`).
 
 petsc4py is not a dependency of the serial install: Debian's ``python3-petsc4py-real`` (PETSc 3.18
 with MUMPS, hypre, SuperLU_dist) is seen from a venv made by Debian's Python with
@@ -100,7 +108,7 @@ class PetscGAMG(_PetscBackend):
 
     name = "petsc-gamg"
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
-               "ksp_max_it": "600", "pc_type": "gamg"}
+               "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "gamg"}
 
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
         petsc = _petsc()
@@ -119,3 +127,12 @@ class PetscGAMG(_PetscBackend):
         except petsc.Error as err:
             raise SolverFailed(f"PETSc GAMG set-up failed: {err}") from None
         return _PetscFactor(ksp, m)
+
+
+class PetscHypre(PetscGAMG):
+    """GMRES(60) + hypre's BoomerAMG inside PETSc (one process)."""
+
+    name = "petsc-hypre"
+    options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
+               "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "hypre",
+               "pc_hypre_type": "boomeramg"}

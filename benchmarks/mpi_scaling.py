@@ -115,13 +115,14 @@ def child(problem: str, dofs: float, serial: bool, out: Path) -> None:
     local = {"assembly": stats["assembly"], "solve": stats["solve"]}
     if comm is not None:
         local = {k: comm.allreduce(v, op=MPI.MAX) for k, v in local.items()}  # the slowest rank's
+    u_norm = float(np.linalg.norm(built.model.gather(result.u)))  # collective: on every rank
     if comm is None or comm.rank == 0:
         row = {"problem": problem, "engine": "serial" if serial else "distributed", "ranks": ranks,
                "dofs": int(built.model.n_dofs), "completed": bool(result.completed), "message": result.message,
                "steps": stats["steps"], "newton_iterations": stats["iterations"], "setup_s": round(t_setup, 2),
                "assembly_s": round(local["assembly"], 2), "solve_s": round(local["solve"], 2),
                "run_s": round(t_run, 2), "rss_gib_per_rank": [round(r, 2) for r in rss_all],
-               "solver": case["solver"]["linear"], "u_norm": float(np.linalg.norm(built.model.gather(result.u)))}
+               "solver": case["solver"]["linear"], "u_norm": u_norm}
         out.write_text(json.dumps(row))
     shutil.rmtree(folder, ignore_errors=True)
 

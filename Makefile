@@ -31,7 +31,7 @@ test: $(STAMP) $(MPI_STAMP)
 # the Debian packages are installed first where they are missing (a fresh machine of this kind)
 
 $(MPI_STAMP): pyproject.toml
-	/usr/bin/python3 -c "import petsc4py, mpi4py, venv" 2>/dev/null || (apt-get update -qq && \
+	(/usr/bin/python3 -c "import petsc4py, mpi4py, venv" 2>/dev/null && command -v mpiexec >/dev/null) || (apt-get update -qq && \
 		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv python3-petsc4py-real python3-mpi4py openmpi-bin)
 	/usr/bin/python3 -m venv --system-site-packages $(MPI_VENV)
 	$(MPI_VENV)/bin/pip install --quiet -e ".[test]" "numpy>=1.26,<2" "scipy>=1.11,<1.15" "numba>=0.59" "llvmlite>=0.42"
@@ -47,9 +47,13 @@ bench-peer: $(STAMP)
 clean:
 	rm -rf $(VENV) $(MPI_VENV) out
 
-.PHONY: kernels scaling
+.PHONY: kernels scaling mpi-scaling
 kernels: $(STAMP)
 	$(BIN)/python benchmarks/kernels.py
 
 scaling: $(STAMP)
 	$(BIN)/python benchmarks/scaling.py
+
+# MPI scaling on 1 and 2 ranks, 2D and 3D at 1e6 dofs (issue 17; benchmarks/README.md, "MPI scaling")
+mpi-scaling: $(MPI_STAMP)
+	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/python benchmarks/mpi_scaling.py

@@ -10,6 +10,7 @@ import numpy as np
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
 from rockfrac.solve.backend import SolverFailed
+from rockfrac.solve.petsc import run_ksp
 
 
 class _Factor:
@@ -21,17 +22,9 @@ class _Factor:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x with A x = b (b read on the owned dofs), on the local dofs (owned and ghosts)."""
-        PETSc = petsc()
         rhs = self._layout.to_vec(b)
         x = rhs.duplicate()
-        try:
-            self._ksp.solve(rhs, x)
-        except PETSc.Error as err:
-            raise SolverFailed(f"PETSc KSP failed: {err}") from None
-        reason = self._ksp.getConvergedReason()
-        self.iterations = self._ksp.getIterationNumber()
-        if reason < 0:
-            raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {self.iterations} iterations)")
+        self.iterations = run_ksp(self._ksp, rhs, x)
         return self._layout.from_vec(x)
 
 

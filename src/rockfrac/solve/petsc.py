@@ -2,7 +2,7 @@
 
 - ``petsc``: a direct LU of PETSc's AIJ matrix by MUMPS (``-pc_factor_mat_solver_type mumps``);
 - ``petsc-gamg``: GMRES(60) preconditioned by PETSc's smoothed-aggregation AMG (GAMG), with the
-  six rigid-body modes of a 3D mesh as near-null space, relative residual 1e-11;
+  rigid-body modes as near-null space (3 in 2D, 6 in 3D), relative residual 1e-11;
 - ``petsc-hypre``: GMRES(60) preconditioned by hypre's BoomerAMG (classical AMG, on the 3 x 3
   nodal blocks in 3D), relative residual 1e-11.
 
@@ -25,13 +25,26 @@ import numpy as np
 import scipy.sparse as sp
 
 from rockfrac.solve.backend import DENSE_UP_TO, Factorization, SolverFailed, _Backend
-from rockfrac.solve.iterative import rigid_modes_3d
 
 
 def _petsc():
     from petsc4py import PETSc  # ImportError where petsc4py is not installed: not available
 
     return PETSc
+
+
+def run_ksp(ksp, rhs, x) -> int:
+    """Solve into x with a configured KSP; its iterations. SolverFailed if PETSc fails or the KSP
+    does not converge (its reason named)."""
+    petsc = _petsc()
+    try:
+        ksp.solve(rhs, x)
+    except petsc.Error as err:
+        raise SolverFailed(f"PETSc KSP failed: {err}") from None
+    reason, iterations = ksp.getConvergedReason(), ksp.getIterationNumber()
+    if reason < 0:
+        raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {iterations} iterations)")
+    return iterations
 
 
 class _PetscFactor:
@@ -45,15 +58,10 @@ class _PetscFactor:
         petsc = _petsc()
         rhs = petsc.Vec().createWithArray(np.ascontiguousarray(b, dtype=np.float64), comm=petsc.COMM_SELF)
         x = rhs.duplicate()
-        try:
-            self._ksp.solve(rhs, x)
-        except petsc.Error as err:
-            raise SolverFailed(f"PETSc KSP failed: {err}") from None
-        reason = self._ksp.getConvergedReason()
-        self.iterations = self._ksp.getIterationNumber()
+        self.iterations = run_ksp(self._ksp, rhs, x)
         out = x.getArray().copy()
-        if reason < 0 or not np.all(np.isfinite(out)):
-            raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {self.iterations} iterations)")
+        if not np.all(np.isfinite(out)):
+            raise SolverFailed(f"PETSc KSP gave a non-finite solution ({self.iterations} iterations)")
         return out
 
 
@@ -104,7 +112,7 @@ class PetscDirect(_PetscBackend):
 
 
 class PetscGAMG(_PetscBackend):
-    """GMRES(60) + GAMG inside PETSc (one process); the rigid-body modes as near-null space in 3D."""
+    """GMRES(60) + GAMG inside PETSc (one process); the rigid-body modes as near-null space."""
 
     name = "petsc-gamg"
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
@@ -114,12 +122,11 @@ class PetscGAMG(_PetscBackend):
         petsc = _petsc()
         m = self._matrix(a)
         x = self._coordinates
-        if x is not None and x.shape[1] == 3 and a.shape[0] == x.size:
-            m.setBlockSize(3)
-            modes = np.linalg.qr(rigid_modes_3d(x))[0]  # orthonormal, as PETSc's null spaces are
-            vecs = [petsc.Vec().createWithArray(np.ascontiguousarray(modes[:, k]), comm=petsc.COMM_SELF)
-                    for k in range(6)]
-            m.setNearNullSpace(petsc.NullSpace().create(vectors=vecs, comm=petsc.COMM_SELF))
+        if x is not None and a.shape[0] == x.size:  # the rigid-body modes (3 in 2D, 6 in 3D), orthonormal
+            m.setBlockSize(x.shape[1])
+            coords = petsc.Vec().createWithArray(np.ascontiguousarray(x.ravel()), bsize=x.shape[1],
+                                                 comm=petsc.COMM_SELF)
+            m.setNearNullSpace(petsc.NullSpace().createRigidBody(coords))
         ksp, _, _ = self._ksp(m)
         ksp.setFromOptions()
         try:

@@ -221,6 +221,11 @@ class Model:
         """Rank 0's value on every rank (serial: the value)."""
         return value
 
+    def agree(self, failure: str | None) -> str | None:
+        """The first rank's failure, on every rank (serial: the failure): a check that may fail on one
+        rank only ends them all."""
+        return failure
+
     def apply_dirichlet(self, a: sp.csr_matrix) -> sp.csr_matrix:
         """Zero prescribed rows and columns, unit diagonal (the increment there is set by the rhs)."""
         a.data[self._bc_hit] = 0.0

@@ -133,9 +133,24 @@ def make_history(built: Built, path: str = "<case>") -> History:
     return history
 
 
-def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
+def _resume(out: Path, built: Built, case_text: str, rank: int = 0) -> tuple[Position, dict]:
     """The position and run counters of the checkpoint in ``out``, with the model's groups restored
-    to it, after proving that the checkpoint, history.csv and the case belong together."""
+    to it, after proving that the checkpoint, history.csv and the case belong together (an MPI run:
+    on every rank, the same number of ranks, each from its own file; a refusal on any rank is said
+    on all)."""
+    try:
+        found = _restore(out, built, case_text, rank)
+        failure = None
+    except CaseError as err:
+        found, failure = None, str(err)
+    failure = built.model.agree(failure)
+    if failure is not None:
+        raise CaseError(failure)
+    assert found is not None
+    return found
+
+
+def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Position, dict]:
     saved = checkpoint.load(out)  # CaseError if it is not a valid checkpoint
     if saved is None:
         raise CaseError(f"{out}: --resume: no checkpoint here (set [output] checkpoint_every to write them)")
@@ -161,6 +176,17 @@ def _resume(out: Path, built: Built, case_text: str) -> tuple[Position, dict]:
     if digest != saved.history_sha256:
         raise CaseError(f"{history}: --resume: not the history of the checkpoint at step {position.count} (its "
                         "rows up to that step differ: the folder mixes two runs); rerun with --overwrite")
+    model = built.model
+    ranks = int(model.reduce_sum(1))
+    if int(saved.run.get("ranks", 1)) != ranks:
+        raise CaseError(f"{out}: --resume: the checkpoint was written by a run on {int(saved.run.get('ranks', 1))} "
+                        f"MPI ranks; resume on as many (this run has {ranks})")
+    if rank > 0:
+        mine = checkpoint.load(out, checkpoint.rank_file(rank))
+        if mine is None or int(mine.position.get("count", -1)) != position.count or mine.case_sha256 != saved.case_sha256:
+            raise CaseError(f"{out / checkpoint.rank_file(rank)}: --resume: missing or not written with the "
+                            f"checkpoint at step {position.count}; rerun with --overwrite")
+        saved = mine
     groups = built.model.groups
     if len(saved.groups) != len(groups):
         raise CaseError(f"{out}: --resume: the checkpoint was written for a different model "
@@ -194,9 +220,6 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
     if not isinstance(case, Case):
         case = load_case(case)
-    if distribution is not None and resume:
-        raise CaseError(f"{label}: --resume does not run on several MPI ranks yet (no parallel checkpoints); run it "
-                        "on one process")
     built = build(case, label, distribution)  # every input error surfaces here, before any step
     model = built.model
     lead = distribution is None or distribution.rank == 0  # the rank that writes
@@ -215,7 +238,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     start: Position | None = None
     counters: dict[str, float] = {}
     if resume:
-        start, counters = _resume(out, built, case_text)
+        start, counters = _resume(out, built, case_text, distribution.rank if distribution is not None else 0)
         history.restore({"work": np.array(counters.get("work", 0.0)), "u_prev": start.u[: history.n_u],
                          "f_prev": (start.f_int if start.f_int is not None else np.zeros(built.model.n_dofs))[
                              : history.n_u]})
@@ -254,9 +277,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work,
                     **{f"stop_peak.{q}": v for q, v in peaks.items()}}
 
-        if hist is not None and isinstance(log, RunLog):
-            observers.append(Checkpoints(out, case.output.checkpoint_every, built.model.groups, counts, hist, case_sha,
-                                         log))
+        observers.append(Checkpoints(out, case.output.checkpoint_every, model, counts, hist, case_sha, log,
+                                     distribution.rank if distribution is not None else 0))
         observers.append(StopRules(built.program.stops, peaks))
         if start is not None:
             log(f"resumed from the checkpoint at step {start.count}")

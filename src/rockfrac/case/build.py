@@ -157,8 +157,7 @@ def refuse_distributed(case: Case, path: str) -> None:
     if case.output.vtk:
         raise CaseError(f"{path}: [output] vtk = true: the ParaView series {why} (set vtk = false; history.csv, "
                         "points.csv and crack_map.png are written)")
-    if case.output.checkpoint_every:
-        raise CaseError(f"{path}: [output] checkpoint_every: checkpoints {why} (set it to 0)")
+
     for k, st in enumerate(case.stages or []):
         if st.gravity is not None or st.in_situ:
             raise CaseError(f"{path}: [stages {k + 1}]: gravity and in_situ loads {why}")

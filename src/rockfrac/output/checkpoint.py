@@ -13,6 +13,11 @@ refused by NumPy before anything is built from it). It carries
   file damaged inside an intact archive is caught too;
 - ``position.*``, ``run.*`` and ``group<k>.<name>``: where the stepping is and the groups' state.
 
+An MPI run (rockfrac.parallel) writes the position (its vectors whole) and rank 0's groups into
+``checkpoint.npz``, with ``run.ranks``, and each other rank's groups into
+``checkpoint.rank<r>.npz`` (:func:`rank_file`, ``position.count`` the step it was written at): it
+resumes on the same number of ranks.
+
 It is written to a temporary file and moved into place, so a run killed at any moment leaves the
 previous checkpoint intact. A truncated, corrupted, foreign or old (pickle) checkpoint is a
 one-line :class:`~rockfrac.errors.CaseError`; nothing of it is used.
@@ -63,9 +68,14 @@ def _payload_sha256(arrays: dict[str, np.ndarray]) -> str:
     return h.hexdigest()
 
 
+def rank_file(rank: int) -> str:
+    """The checkpoint file of an MPI rank (rank 0's is :data:`FILE`)."""
+    return FILE if rank == 0 else f"checkpoint.rank{rank}.npz"
+
+
 def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, np.ndarray]],
-         run: dict[str, float], case_sha256: str, history_sha256: str) -> Path:
-    """Write folder/checkpoint.npz atomically (see the module docstring)."""
+         run: dict[str, float], case_sha256: str, history_sha256: str, file: str = FILE) -> Path:
+    """Write folder/``file`` (checkpoint.npz) atomically (see the module docstring)."""
     arrays: dict[str, np.ndarray] = {
         "meta.format": np.array(FORMAT),
         "meta.version": np.array(VERSION, dtype=np.int64),
@@ -83,8 +93,8 @@ def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, n
                 raise TypeError(f"checkpoint: group {k} {name}: {a.dtype} is not plain data")
             arrays[f"group{k}.{name}"] = a
     arrays["meta.payload_sha256"] = np.array(_payload_sha256(arrays))
-    path = Path(folder) / FILE
-    tmp = Path(folder) / (FILE + ".tmp")
+    path = Path(folder) / file
+    tmp = Path(folder) / (file + ".tmp")
     with open(tmp, "wb") as fh:
         np.savez(fh, **arrays)  # type: ignore[arg-type]
         fh.flush()
@@ -97,12 +107,12 @@ def exists(folder: Path) -> bool:
     return (Path(folder) / FILE).exists()
 
 
-def load(folder: Path) -> Saved | None:
-    """The checkpoint in ``folder``, or None if there is none; CaseError if it is not a valid one."""
+def load(folder: Path, name: str = FILE) -> Saved | None:
+    """The checkpoint ``name`` in ``folder``, or None if there is none; CaseError if it is not a valid one."""
     folder = Path(folder)
-    path = folder / FILE
+    path = folder / name
     if not path.exists():
-        if (folder / LEGACY).exists():
+        if name == FILE and (folder / LEGACY).exists():
             raise CaseError(f"{folder / LEGACY}: a pickle checkpoint of an older rockfrac; it is never loaded "
                             "(a pickle can run code). Rerun the case from the start")
         return None

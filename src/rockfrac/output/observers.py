@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from abc import ABC
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from rockfrac.model import Model
 from rockfrac.output import checkpoint
 from rockfrac.output.csvout import CsvWriter
 from rockfrac.solve.stepping import Position, StepInfo, StopRun
@@ -166,19 +167,35 @@ def position_from_arrays(a: dict[str, np.ndarray]) -> Position:
 
 
 class Checkpoints(Observer):
-    """A checkpoint every ``every`` steps (0: never), with the hash of the history written so far."""
+    """A checkpoint every ``every`` steps (0: never), with the hash of the history written so far.
 
-    def __init__(self, folder: Path, every: int, groups: list, counters: Callable[[], dict[str, float]],
-                 history: HistoryCsv, case_sha: str, log: RunLog):
-        self.folder, self.every, self.groups, self.counters = folder, every, groups, counters
-        self.history, self.case_sha, self.log = history, case_sha, log
+    On a distributed ``model`` every rank has one: the position's vectors are gathered whole, rank 0
+    writes them with its groups (``history``: its CSV), each other rank its groups into its own file.
+    """
+
+    def __init__(self, folder: Path, every: int, model: Model, counters: Callable[[], dict[str, float]],
+                 history: HistoryCsv | None, case_sha: str, log: Callable[[str], None], rank: int = 0):
+        self.folder, self.every, self.model, self.counters = folder, every, model, counters
+        self.history, self.case_sha, self.log, self.rank = history, case_sha, log, rank
 
     def step(self, step: Step) -> None:
         info = step.info
         if not self.every or info.step % self.every or info.position is None:
             return
-        checkpoint.save(self.folder, position_arrays(info.position), [g.checkpoint_state() for g in self.groups],
-                        self.counters(), self.case_sha, self.history.digest())
+        model, p = self.model, info.position
+        if model.distributed:  # collective: every rank gathers
+            p = replace(p, u=model.gather(p.u), f_int=None if p.f_int is None else model.gather(p.f_int),
+                        u_before=None if p.u_before is None else model.gather(p.u_before))
+        states = [g.checkpoint_state() for g in model.groups]
+        ranks = {"ranks": float(model.reduce_sum(1))} if model.distributed else {}
+        if self.rank == 0:
+            assert self.history is not None
+            checkpoint.save(self.folder, position_arrays(p), states, {**self.counters(), **ranks}, self.case_sha,
+                            self.history.digest())
+        else:
+            checkpoint.save(self.folder, {"count": np.array(p.count)}, states, ranks, self.case_sha, "",
+                            checkpoint.rank_file(self.rank))
+        model.reduce_sum(0)  # every rank's file is in place before the log says so
         self.log(f"  checkpoint at step {info.step}")
 
 

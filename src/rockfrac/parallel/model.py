@@ -177,6 +177,9 @@ class DistributedModel(Model):
     def share(self, value: Any) -> Any:
         return self.comm.bcast(value, root=0)
 
+    def agree(self, failure: str | None) -> str | None:
+        return next((f for f in self.comm.allgather(failure) if f is not None), None)
+
     # -- the groups' verdicts over the ranks --------------------------------------------------------
     def event(self) -> tuple[float, float] | None:
         pair = super().event()

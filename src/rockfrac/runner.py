@@ -261,11 +261,11 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) else POINT_COLUMNS
             extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
             observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
-        if lead and case.output.vtk:
+        if case.output.vtk:  # an MPI run: every rank makes the fields (collective), rank 0 writes them whole
             from rockfrac.output.fields import step_output
 
             observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every,
-                                             lambda u: step_output(built, u), keep))
+                                             lambda u: step_output(built, u), keep, write=lead))
         observers.append(log)
         if progress is not None and lead:
             observers.append(Progress(progress))

@@ -227,7 +227,7 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     from rockfrac.runner import run_case
 
     case = splitting_case(2000)
-    case["output"] = {"picture": True}
+    case["output"] = {"picture": True, "vtk": True, "vtk_every": 48}
     case_file = tmp_path / "split.toml"
     import tomli_w
 
@@ -244,6 +244,19 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     for name in ("history.csv", "points.csv"):
         assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
     assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
+    import meshio  # the ParaView series, rank 0's, whole: every field as the serial one's
+
+    files = sorted(p.name for p in (tmp_path / "serial" / "vtk").glob("*.vtu"))
+    assert len(files) == 3 and files == sorted(p.name for p in (tmp_path / "mpi" / "vtk").glob("*.vtu"))
+    ser_vtu, par_vtu = (meshio.read(tmp_path / run / "vtk" / files[-1]) for run in ("serial", "mpi"))
+    np.testing.assert_array_equal(par_vtu.points, ser_vtu.points)
+    for name, values in ser_vtu.point_data.items():
+        assert np.abs(par_vtu.point_data[name] - values).max() <= 1e-9 * np.abs(values).max(), name
+    for name, blocks in ser_vtu.cell_data.items():
+        for got, want in zip(par_vtu.cell_data[name], blocks):
+            scale = max(np.nanmax(np.abs(want), initial=0.0), 1e-300)
+            np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+            assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-9 * scale, name
     log = (tmp_path / "mpi" / "run.log").read_text()
     assert f"MPI: {n} ranks" in log and "linear solver: petsc" in log
     # a folder holding a run: rank 0's refusal ends every rank, exit code 2, said once

@@ -154,9 +154,6 @@ def refuse_distributed(case: Case, path: str) -> None:
                             "multipliers are not partitioned); form = 'ep' does")
     if case.initial is not None:
         raise CaseError(f"{path}: [initial]: an initial state (gravity, in-situ stress) {why}")
-    if case.output.vtk:
-        raise CaseError(f"{path}: [output] vtk = true: the ParaView series {why} (set vtk = false; history.csv, "
-                        "points.csv and crack_map.png are written)")
 
     for k, st in enumerate(case.stages or []):
         if st.gravity is not None or st.in_situ:

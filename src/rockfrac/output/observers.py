@@ -68,19 +68,24 @@ class PointsCsv(Observer):
 
 
 class VtkSeriesWriter(Observer):
-    """The ParaView series: every ``every``-th step, its fields from ``fields(u)``."""
+    """The ParaView series: every ``every``-th step, its fields from ``fields(u)``.
 
-    def __init__(self, folder: Path, every: int, fields: Callable, resume_at: int | None):
+    write False: the fields are made but not written (an MPI rank other than 0: making them is a
+    collective call, rank 0 writes them whole)."""
+
+    def __init__(self, folder: Path, every: int, fields: Callable, resume_at: int | None, write: bool = True):
         from rockfrac.output.vtk import VtkSeries
 
-        self.series = VtkSeries(folder, resume=resume_at is not None)
-        if resume_at is not None:
+        self.series = VtkSeries(folder, resume=resume_at is not None) if write else None
+        if resume_at is not None and self.series is not None:
             self.series.truncate_after(resume_at)
         self.every, self.fields = every, fields
 
     def step(self, step: Step) -> None:
         if step.info.step % self.every == 0:
-            self.series.write(step.info.step, float(step.info.step), self.fields(step.info.u))
+            fields = self.fields(step.info.u)
+            if self.series is not None:
+                self.series.write(step.info.step, float(step.info.step), fields)
 
 
 class Quiet(Observer):

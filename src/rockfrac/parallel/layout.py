@@ -50,6 +50,7 @@ class Layout:
         self._seq = PETSc.Vec().createSeq(self.local.shape[0], comm=PETSc.COMM_SELF)
         index = PETSc.IS().createGeneral(self.local_petsc, comm=PETSc.COMM_SELF)
         self._ghosts = PETSc.Scatter().create(self._vec, index, self._seq, None)
+        self._modes = None
 
     def owner(self, petsc_rows: np.ndarray) -> np.ndarray:
         """The rank owning each PETSc row."""
@@ -87,12 +88,15 @@ class Layout:
         return self.from_vec(v)
 
     def rigid_modes(self):
-        """The rigid-body modes of the owned nodes (PETSc's orthonormal near-null space)."""
-        PETSc = petsc()
-        dim = self.coordinates.shape[1]
-        x = PETSc.Vec().createWithArray(np.ascontiguousarray(self.coordinates.ravel()), size=(self.hi - self.lo, self.n),
-                                        bsize=dim, comm=self.comm)
-        return PETSc.NullSpace().createRigidBody(x)
+        """The rigid-body modes of the owned nodes (PETSc's orthonormal near-null space), made once."""
+        if self._modes is None:
+            PETSc = petsc()
+            dim = self.coordinates.shape[1]
+            x = PETSc.Vec().createWithArray(np.ascontiguousarray(self.coordinates.ravel()),
+                                            size=(self.hi - self.lo, self.n), bsize=dim, comm=self.comm)
+            self._modes = PETSc.NullSpace().createRigidBody(x)
+            x.destroy()
+        return self._modes
 
     def gather(self, x: np.ndarray) -> np.ndarray:
         """The full vector on every rank, each entry from its owner (output, tests)."""

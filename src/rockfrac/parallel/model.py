@@ -38,10 +38,12 @@ class DistributedMatrix:
 
     def __matmul__(self, x: np.ndarray) -> np.ndarray:
         """A x on the owned entries of a full-length vector (x read on its owned entries)."""
-        y = self.layout.new_vec()
-        self.mat.mult(self.layout.to_vec(x), y)
+        y, xv = self.layout.new_vec(), self.layout.to_vec(x)
+        self.mat.mult(xv, y)
         out = np.zeros(self.layout.n)
         out[self.layout.owned] = y.getArray()
+        y.destroy()
+        xv.destroy()
         return out
 
 

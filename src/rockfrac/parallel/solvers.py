@@ -24,8 +24,12 @@ class _Factor:
         """x with A x = b (b read on the owned dofs), on the local dofs (owned and ghosts)."""
         rhs = self._layout.to_vec(b)
         x = rhs.duplicate()
-        self.iterations = run_ksp(self._ksp, rhs, x)
-        return self._layout.from_vec(x)
+        try:
+            self.iterations = run_ksp(self._ksp, rhs, x)
+            return self._layout.from_vec(x)
+        finally:
+            rhs.destroy()
+            x.destroy()
 
 
 class DistributedSolver:
@@ -35,11 +39,16 @@ class DistributedSolver:
     options: dict[str, str] = {}
     rigid_modes = False  # give the preconditioner the rigid-body modes as its near-null space
 
+    def __init__(self) -> None:
+        self._ksp = None  # the last factorization's, freed by the next (petsc4py does not free it when dropped)
+
     def factorize(self, a: DistributedMatrix) -> _Factor:
         PETSc = petsc()
         if self.rigid_modes:
             a.mat.setNearNullSpace(a.layout.rigid_modes())
-        ksp = PETSc.KSP().create(comm=a.layout.comm)
+        if self._ksp is not None:
+            self._ksp.destroy()
+        self._ksp = ksp = PETSc.KSP().create(comm=a.layout.comm)
         ksp.setOperators(a.mat)
         prefix = f"rockfrac_{self.name.replace('-', '_')}_"
         ksp.setOptionsPrefix(prefix)

@@ -143,3 +143,51 @@ def test_a_coarse_study_completes_and_says_what_it_cannot_measure(tmp_path):
     assert main(["paper", "--out", str(tmp_path), "--steps", "10", "--quiet", "--jobs", "1"]) == 0
     report = (tmp_path / "report.md").read_text()
     assert "not measurable at this step count" in report and "nan" not in report.split("## Figures")[0].lower()
+
+
+def test_a_fresh_process_forks_its_workers_and_writes_the_one_process_bits(study, tmp_path):
+    """`rockfrac paper` as a user starts it (a fresh process, a progress display): the workers are
+    forked (nothing to import again) and the CSVs are those of one process to the last bit."""
+    import os
+    import subprocess
+    import sys
+
+    if (os.cpu_count() or 1) < 2 or not sys.platform.startswith("linux"):
+        pytest.skip("one core or not Linux: no forked workers")
+    out = tmp_path / "forked"
+    run = subprocess.run([sys.executable, "-m", "rockfrac.cli", "paper", "--out", str(out), "--steps", "100",
+                          "--jobs", "2"], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "the cases on 2 worker processes (fork)" in (out / "report.md").read_text()
+    one = tmp_path / "one"
+    assert main(["paper", "--out", str(one), "--steps", "100", "--quiet", "--jobs", "1"]) == 0
+    assert "the cases in one process" in (one / "report.md").read_text()
+    files = sorted(p.relative_to(one) for p in one.rglob("*.csv"))
+    assert len(files) >= 15 and files == sorted(p.relative_to(out) for p in out.rglob("*.csv"))
+    for f in files:
+        assert (one / f).read_bytes() == (out / f).read_bytes(), f
+
+
+def test_fork_is_refused_beside_another_thread():
+    import threading
+
+    ready, release = threading.Event(), threading.Event()
+    other = threading.Thread(target=lambda: (ready.set(), release.wait(10)))
+    other.start()
+    try:
+        ready.wait(10)
+        assert not paper.fork_is_safe()
+    finally:
+        release.set()
+        other.join()
+
+
+def test_a_case_failing_in_a_worker_is_raised_with_its_traceback(tmp_path, monkeypatch):
+    """A worker's failure stops the study with the case named and the worker's traceback."""
+    def broken(case, *args, **kwargs):
+        raise ValueError("deliberately broken case")
+
+    monkeypatch.setattr(paper, "run_case", broken)
+    monkeypatch.setattr(paper, "fork_is_safe", lambda: True)  # the worker must see the broken run_case
+    with pytest.raises(RuntimeError, match=r"(?s)failed in a worker process.*deliberately broken case"):
+        paper.run_cases(tmp_path, axial_steps=10, jobs=2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -145,15 +146,21 @@ def _cmd_paper(args: argparse.Namespace) -> int:
 
     from rockfrac.studies.paper import run_paper
 
+    # refreshed by the rows themselves, at most 10 times a second: a refresher thread would keep
+    # the study from forking its workers (rockfrac.studies.paper.fork_is_safe)
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"),
-                  TimeElapsedColumn(), console=console, disable=args.quiet) as bar:
+                  TimeElapsedColumn(), console=console, disable=args.quiet, auto_refresh=False) as bar:
         tasks: dict[str, TaskID] = {}
+        shown = [0.0]
 
         def progress(name: str, row: dict) -> None:
             if name not in tasks:
                 tasks[name] = bar.add_task(name, total=None, info="")
             bar.update(tasks[name], advance=1, info=f"step {row['step']} it {row['newton_iterations']} "
                        f"u={1e3 * row['u_axial']:.3f} mm F={row['F_axial']:.0f} N/m")
+            if time.monotonic() - shown[0] > 0.1:
+                shown[0] = time.monotonic()
+                bar.refresh()
 
         jobs = args.jobs if args.jobs is not None else min(2, os.cpu_count() or 1)
         results = run_paper(args.out, args.steps, progress, jobs)

@@ -43,6 +43,14 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _cells(values: Any, n: int) -> list[str]:
+    """The n cells of one column, as :func:`_fmt` writes them (a float array converted at once)."""
+    a = np.asarray(values)
+    if a.dtype.kind == "f":
+        return [repr(x) for x in a[:n].tolist()]  # Python floats: repr(float(v)) of each
+    return [_fmt(x) for x in a[:n].tolist()]
+
+
 def _update(h: Any, row: list[str]) -> None:
     h.update(("\x1f".join(row) + "\x1e").encode("utf-8"))
 
@@ -100,8 +108,10 @@ class CsvWriter:
         self._fh.flush()
 
     def write_many(self, rows: dict[str, np.ndarray], n: int) -> None:
-        for i in range(n):
-            self._row([_fmt(rows[c][i]) if c in rows else "" for c in self.columns])
+        """Append the first n rows of the columns ``rows`` (a column it lacks: empty cells)."""
+        empty = [""] * n
+        for cells in zip(*(_cells(rows[c], n) if c in rows else empty for c in self.columns)):
+            self._row(list(cells))
         self._fh.flush()
 
     def digest(self) -> str:

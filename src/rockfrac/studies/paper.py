@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -80,61 +82,145 @@ def deformed(summary: RunSummary) -> tuple[float, dict[str, list[np.ndarray]]]:
     return mag, deformed_polylines(summary.built, summary.result.u, mag)
 
 
-def _run_in_worker(name: str, case: dict, folder: str, queue) -> tuple[RunSummary, tuple]:
-    """One case in a worker process: its summary without the model (whose load paths hold
-    closures) and what the figures need of the model."""
-    progress = None
-    if queue is not None:
-        def progress(row: dict) -> None:
-            queue.put((name, {k: row[k] for k in PROGRESS_KEYS}))
-    summary = run_case(parse_case(case, name), Path(folder), overwrite=True, progress=progress)
-    shape = deformed(summary)
-    summary.built = None
-    return summary, shape
+def _worker(conn, cases: dict[str, dict], out: str, with_progress: bool) -> None:
+    """A worker process: runs the cases the parent sends by name until it sends None, reporting each
+    step (when asked) and each case's summary without its model (whose load paths hold closures) but
+    with what the figures need of it; a failure is sent back as its traceback."""
+    import traceback
+
+    while (name := conn.recv()) is not None:
+        try:
+            progress = None
+            if with_progress:
+                def progress(row: dict, n: str = name) -> None:
+                    conn.send(("row", n, {k: row[k] for k in PROGRESS_KEYS}))
+            summary = run_case(parse_case(cases[name], name), _folder(Path(out), name), overwrite=True,
+                               progress=progress)
+            shape = deformed(summary)
+            summary.built = None
+            conn.send(("done", name, (summary, shape)))
+        except BaseException:  # noqa: BLE001 - any failure goes back to the parent, which raises it
+            conn.send(("error", name, traceback.format_exc()))
+            return
 
 
-def run_cases(out: Path, axial_steps: int = 400, progress=None, jobs: int = 1) -> list[CaseResult]:
+def run_cases(out: Path, axial_steps: int = 400, progress=None, jobs: int = 1, on_result=None
+              ) -> tuple[list[CaseResult], str]:
     """Run the study's cases into out/cases/<name>, ``jobs`` at a time in worker processes (1: one
-    after the other in this process). Each case is deterministic (rockfrac.solve.linear fixes MKL's
-    threading layer), so the results are the same bits either way (tested)."""
+    after the other in this process), handing each result to ``on_result`` as its case ends;
+    returns the results in the study's order and where they ran. Each case is deterministic
+    (rockfrac.solve.linear fixes MKL's threading layer), so the results are the same bits either
+    way (tested)."""
     cases = study_cases(axial_steps)
+    results: dict[str, CaseResult] = {}
+
+    def finished(name: str, summary: RunSummary, shape: tuple) -> None:
+        folder = _folder(out, name)
+        results[name] = CaseResult(name, read_csv(folder / "history.csv"), read_csv(folder / "points.csv"),
+                                   summary, shape)
+        if on_result is not None:
+            on_result(results[name])
+
+    where = "in one process"
     if jobs > 1:
-        done = _run_parallel(out, cases, progress, jobs)
+        method = _run_parallel(out, cases, progress, jobs, finished)
+        where = f"on {min(jobs, len(cases))} worker processes ({method})"
     else:
-        done = {}
         for name, case in cases.items():
             step_progress = None
             if progress is not None:
                 def step_progress(row: dict, n: str = name) -> None:
                     progress(n, row)
             summary = run_case(parse_case(case, name), _folder(out, name), overwrite=True, progress=step_progress)
-            done[name] = (summary, deformed(summary))
-    return [CaseResult(name, read_csv(_folder(out, name) / "history.csv"), read_csv(_folder(out, name) / "points.csv"),
-                       *done[name]) for name in cases]
+            finished(name, summary, deformed(summary))
+    return [results[name] for name in cases], where
 
 
-def _run_parallel(out: Path, cases: dict[str, dict], progress, jobs: int) -> dict[str, tuple[RunSummary, tuple]]:
-    """The cases on ``jobs`` spawned worker processes (the longest, the EDE, first); progress rows
-    come back through a queue. On two cores the first run's compiling is shared between them."""
+# the order the workers take the cases: the longest first, then those of Fig. 5-9 (their figures
+# are then drawn while the last case, beyond the paper, still runs)
+DISPATCH = (EDE, RP, EP9, EP8, BEYOND)
+
+
+def fork_is_safe() -> bool:
+    """Whether this process may fork its workers: Linux, no other Python thread (e.g. a progress
+    display's refresher), Numba's thread pool not started and no OpenMP runtime loaded (MKL's
+    PARDISO brings one; a pool forked half-way hangs the child). NumPy's and SciPy's OpenBLAS pools
+    are stopped across a fork by their own handlers. A forked worker starts at once, every module
+    imported; a spawned one imports rockfrac again (about a second)."""
     import multiprocessing
-    import queue as queue_module
-    from concurrent.futures import ProcessPoolExecutor, wait
+    import sys
+    import threading
 
-    context = multiprocessing.get_context("spawn")  # no fork of a process holding thread pools
-    with context.Manager() as manager, ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
-        rows = manager.Queue() if progress is not None else None
-        futures = {name: pool.submit(_run_in_worker, name, case, str(_folder(out, name)), rows)
-                   for name, case in cases.items()}
-        pending = set(futures.values())
-        while pending:
-            _, pending = wait(pending, timeout=0.1)
-            while rows is not None:
-                try:
-                    name, row = rows.get_nowait()
-                except queue_module.Empty:
-                    break
-                progress(name, row)
-        return {name: f.result() for name, f in futures.items()}
+    if not sys.platform.startswith("linux") or "fork" not in multiprocessing.get_all_start_methods():
+        return False
+    if threading.active_count() != 1:
+        return False
+    parallel = sys.modules.get("numba.np.ufunc.parallel")
+    if parallel is not None and getattr(parallel, "_is_initialized", True):
+        return False
+    try:
+        with open("/proc/self/maps", encoding="utf-8") as maps:
+            return not any(lib in line for line in maps for lib in ("libgomp", "libiomp", "libomp"))
+    except OSError:
+        return False
+
+
+def _run_parallel(out: Path, cases: dict[str, dict], progress, jobs: int, finished) -> str:
+    """The cases on ``jobs`` worker processes (forked where that is safe, else spawned) in the order
+    of DISPATCH, each worker given the next case when it is done; step rows come back as they
+    are made, each case's summary goes to ``finished`` as it ends. Returns the start method.
+    Matplotlib is imported before the workers start, so no one imports it twice."""
+    import multiprocessing
+    from multiprocessing.connection import wait
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401 - for the crack maps and the figures
+
+    method = "fork" if fork_is_safe() else "spawn"
+    context: Any = multiprocessing.get_context(method)  # typeshed's BaseContext lacks Process
+    queue = sorted(cases, key=lambda n: DISPATCH.index(n) if n in DISPATCH else len(DISPATCH))
+    workers = []
+    for _ in range(min(jobs, len(queue))):
+        parent, child = context.Pipe()
+        proc = context.Process(target=_worker, args=(child, cases, str(out), progress is not None), daemon=True)
+        proc.start()
+        child.close()
+        parent.send(queue.pop(0))
+        workers.append((proc, parent))
+    try:
+        running = {conn: proc for proc, conn in workers}  # the workers with a case
+        while running:
+            ready = wait(list(running) + [proc.sentinel for proc in running.values()])
+            for conn, proc in list(running.items()):
+                while conn in running and conn.poll():
+                    try:
+                        kind, name, payload = conn.recv()
+                    except EOFError:
+                        break
+                    if kind == "row":
+                        progress(name, payload)
+                    elif kind == "error":
+                        raise RuntimeError(f"case {name!r} failed in a worker process:\n{payload}")
+                    else:
+                        if queue:
+                            conn.send(queue.pop(0))
+                        else:
+                            conn.send(None)  # the worker ends
+                            running.pop(conn)
+                        finished(name, *payload)
+                if conn in running and proc.sentinel in ready and not conn.poll():
+                    raise RuntimeError(f"a worker process of rockfrac paper died (exit code {proc.exitcode}) "
+                                       "before reporting its case")
+        return method
+    finally:
+        for proc, conn in workers:
+            proc.join(timeout=5.0 if not running else 0.0)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join()
+            conn.close()
 
 
 # --- numbers ------------------------------------------------------------------------------------
@@ -269,32 +355,32 @@ def _force_figure(out: Path, stem: str, results: list[CaseResult], title: str | 
     _long_csv(out / f"{stem}.csv", ["case", "u_axial", "F_axial"], rows)
 
 
-def _isv_figures(out: Path, results: list[CaseResult]) -> list[str]:
+ISV_FIGURES = {"fig7_cohesion": ("c", "cohesion c [Pa]"), "fig8_friction": ("tan_phi", "friction angle phi [rad]"),
+               "fig9_dilation": ("tan_psi", "dilation angle psi [rad]")}
+
+
+def _isv_figure(out: Path, stem: str, results: list[CaseResult]) -> None:
+    """Fig. 7-9: an internal variable of the surfaces against ||[u^p]||."""
     import matplotlib.pyplot as plt
 
-    names = []
-    for stem, col, label in (("fig7_cohesion", "c", "cohesion c [Pa]"),
-                             ("fig8_friction", "tan_phi", "friction angle phi [rad]"),
-                             ("fig9_dilation", "tan_psi", "dilation angle psi [rad]")):
-        fig, ax = plt.subplots(figsize=(6.4, 4.4))
-        rows = []
-        for r in results:
-            pl = r.history["n_plastic"] > 0
-            x = r.history["jump_p_norm"][pl]
-            y = r.history[col][pl] if col == "c" else np.arctan(r.history[col][pl])
-            c, ls = STYLES[r.name]
-            ax.plot(1e3 * x, y, color=c, ls=ls, label=r.name)
-            rows += [(r.name, xx, yy) for xx, yy in zip(x, y)]
-        ax.set_xlabel("||[u^p]|| [mm]")
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        fig.savefig(out / f"{stem}.png", dpi=150)
-        plt.close(fig)
-        _long_csv(out / f"{stem}.csv", ["case", "jump_p_norm", "c" if col == "c" else col.replace("tan_", "")], rows)
-        names.append(f"{stem}.png")
-    return names
+    col, label = ISV_FIGURES[stem]
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    rows = []
+    for r in results:
+        pl = r.history["n_plastic"] > 0
+        x = r.history["jump_p_norm"][pl]
+        y = r.history[col][pl] if col == "c" else np.arctan(r.history[col][pl])
+        c, ls = STYLES[r.name]
+        ax.plot(1e3 * x, y, color=c, ls=ls, label=r.name)
+        rows += [(r.name, xx, yy) for xx, yy in zip(x, y)]
+    ax.set_xlabel("||[u^p]|| [mm]")
+    ax.set_ylabel(label)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / f"{stem}.png", dpi=150)
+    plt.close(fig)
+    _long_csv(out / f"{stem}.csv", ["case", "jump_p_norm", "c" if col == "c" else col.replace("tan_", "")], rows)
 
 
 def _mesh_figure(out: Path, results: dict[str, CaseResult]) -> tuple[str, dict[str, float]]:
@@ -321,25 +407,55 @@ def _mesh_figure(out: Path, results: dict[str, CaseResult]) -> tuple[str, dict[s
     return "fig6_deformed_meshes.png", mags
 
 
-def figures(out: Path, results: list[CaseResult]) -> tuple[list[str], dict[str, float]]:
-    """Fig. 5-9 (and Fig. 5b, beyond the paper) as PNG with their CSVs."""
-    import matplotlib
+FIGURES = (("fig5_force_displacement", PAPER_CASES), ("fig6_deformed_meshes", (EDE, EP9)),
+           ("fig7_cohesion", PAPER_CASES), ("fig8_friction", PAPER_CASES), ("fig9_dilation", PAPER_CASES),
+           ("fig5b_unreduced_rates", (EP8, BEYOND, RP)))  # Fig. 5-9 and, beyond the paper, Fig. 5b; their cases
 
-    matplotlib.use("Agg")
-    by = {r.name: r for r in results}
-    paper = [by[k] for k in PAPER_CASES]
-    _force_figure(out, "fig5_force_displacement", paper)
-    _force_figure(out, "fig5b_unreduced_rates", [by[EP8], by[BEYOND], by[RP]],
-                  "Beyond the paper: EP CSE k = 1e8 with alpha = 2e3 (path following)")
-    fig6, mags = _mesh_figure(out, by)
-    names = ["fig5_force_displacement.png", fig6] + _isv_figures(out, paper) + ["fig5b_unreduced_rates.png"]
-    return names, mags
+
+class Figures:
+    """Fig. 5-9 (and Fig. 5b) as PNG with their CSVs, each drawn as soon as the cases it shows are in,
+    so the figures of finished cases are drawn while the last ones still run."""
+
+    def __init__(self, out: Path):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        self.out = out
+        self.by: dict[str, CaseResult] = {}
+        self.mags: dict[str, float] = {}  # Fig. 6's displacement magnification of each case drawn
+        self.drawn: set[str] = set()
+
+    def add(self, result: CaseResult) -> None:
+        """Take a finished case and draw every figure whose cases are now all in."""
+        self.by[result.name] = result
+        for stem, needs in FIGURES:
+            if stem not in self.drawn and all(n in self.by for n in needs):
+                self._draw(stem, [self.by[n] for n in needs])
+                self.drawn.add(stem)
+
+    def _draw(self, stem: str, results: list[CaseResult]) -> None:
+        if stem == "fig5_force_displacement":
+            _force_figure(self.out, stem, results)
+        elif stem == "fig5b_unreduced_rates":
+            _force_figure(self.out, stem, results, "Beyond the paper: EP CSE k = 1e8 with alpha = 2e3 (path following)")
+        elif stem == "fig6_deformed_meshes":
+            self.mags = _mesh_figure(self.out, self.by)[1]
+        else:
+            _isv_figure(self.out, stem, results)
+
+    def names(self) -> list[str]:
+        """The figures' files in the report's order (every one drawn, else a RuntimeError)."""
+        missing = [stem for stem, _ in FIGURES if stem not in self.drawn]
+        if missing:
+            raise RuntimeError(f"figures not drawn, their cases missing: {missing}")
+        return [f"{stem}.png" for stem, _ in FIGURES]
 
 
 # --- report ---------------------------------------------------------------------------------------
 
 
-def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[str, float], wall: float) -> None:
+def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[str, float], wall: float,
+           where: str = "in one process") -> None:
     """report.md: Table 1 as used, the key numbers per case, the claims with numbers, the figures."""
     by = {r.name: r for r in results}
     mc = analytic.mohr_coulomb_force(table1.CONFINEMENT, table1.CRACK_ANGLE, table1.CSE_LAW["c_p"],
@@ -347,7 +463,7 @@ def report(out: Path, results: list[CaseResult], names: list[str], mags: dict[st
     dp = table1.DRUCKER_PRAGER
     lines = [
         "# The paper's numerical study (Regueiro & Yu 2010, Sect. 7), reproduced by rockfrac", "",
-        f"Total wall time {wall:.1f} s. Specimen 40 mm x 80 mm, plane strain, E = 1.5e7 Pa, nu = 0.3, "
+        f"Total wall time {wall:.1f} s, the cases {where}. Specimen 40 mm x 80 mm, plane strain, E = 1.5e7 Pa, nu = 0.3, "
         f"20 kPa confinement then top shortening. CSEs through the centre at {math.degrees(table1.CRACK_ANGLE):.4f} deg "
         "from horizontal: the band angle where det A = 0 for the EDE's bulk (computed, see below).", "",
         "## Table 1 as used", "",
@@ -393,7 +509,7 @@ def run_paper(out: str | Path, axial_steps: int = 400, progress=None, jobs: int 
     """The whole study into ``out`` (``jobs`` cases at a time); returns the per-case results."""
     out = prepare_output(out, ())  # a folder we can write; the study rewrites its own outputs
     t0 = time.perf_counter()
-    results = run_cases(out, axial_steps, progress, jobs)
-    names, mags = figures(out, results)
-    report(out, results, names, mags, time.perf_counter() - t0)
+    figures = Figures(out)
+    results, where = run_cases(out, axial_steps, progress, jobs, figures.add)
+    report(out, results, figures.names(), figures.mags, time.perf_counter() - t0, where)
     return results

@@ -221,6 +221,10 @@ class Model:
         """Rank 0's value on every rank (serial: the value)."""
         return value
 
+    def allgather(self, value: Any) -> list[Any]:
+        """Every rank's value, in rank order, on every rank (serial: [value])."""
+        return [value]
+
     def agree(self, failure: str | None) -> str | None:
         """The first rank's failure, on every rank (serial: the failure): a check that may fail on one
         rank only ends them all."""

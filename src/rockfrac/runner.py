@@ -249,8 +249,17 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     # the peak magnitudes the stop rules have seen (checkpointed as run.stop_peak.<quantity>)
     peaks = {k.removeprefix("stop_peak."): float(v) for k, v in counters.items() if k.startswith("stop_peak.")}
     run = {"iters": int(counters.get("iters", 0)), "last": keep or 0}
-    log: RunLog | Quiet = (RunLog(out / "run.log", keep, lambda: [line for g in built.model.groups
-                                                                   for line in g.event_log()]) if lead else Quiet())
+    events: list[str] = []  # the groups' event lines of every rank, in the order they came
+    seen: dict[tuple[int, int], int] = {}
+
+    def gather_events() -> None:  # a collective call: each group's new lines of each rank, appended
+        for k, g in enumerate(model.groups):
+            for r, lines in enumerate(model.allgather(g.event_log())):
+                events.extend(lines[seen.get((k, r), 0):])
+                seen[k, r] = len(lines)
+
+    gather_events()
+    log: RunLog | Quiet = RunLog(out / "run.log", keep, lambda: events) if lead else Quiet()
     observers: list[Observer] = []
     try:
         hist = HistoryCsv(out / "history.csv", history.columns, keep) if lead else None
@@ -304,6 +313,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 info = replace(info, u=model.gather(info.u), f_int=model.gather(info.f_int))
             rec = point_rows(built, info.u)
             row = history.row(info, rec)
+            gather_events()
             run["iters"] += info.newton.iterations
             run["last"] = info.step
             if "F_axial" in row and info.stage.startswith("axial"):

@@ -95,10 +95,27 @@ def joint_case() -> dict:
     return case
 
 
+def band_case(tracking: str = "local", max_steps: int = 66) -> dict:
+    """An embedded shear band (tests/test_crack_tracking.py) on 12 x 24 quads under path control: the
+    cells localize one after the other from the weak seed, each continuing the crack from the tip of
+    its neighbour ("local"), or each on its own ("none"); max_steps before the run's own end."""
+    from test_crack_tracking import H, W
+    from test_crack_tracking import band_case as tracked
+
+    mesh = {"kind": "block", "element": "quad4", "width": W, "height": H, "nx": 12, "ny": 24,
+            "inclusion": [0.0, 0.0067, 0.0034, 0.0167]}
+    case = tracked(mesh, {"tracking": tracking})
+    case["loading"]["max_steps"] = max_steps
+    return case
+
+
 CASES = {
     # EP surfaces of the paper's law, load control; the activation is located as an event
     "paper_ep": lambda: paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3),
     "splitting_path": splitting_case,
+    # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
+    "band_local": band_case,
+    "band_none": lambda: band_case("none", 43),
 }
 
 
@@ -122,6 +139,8 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
     ser = serial_history(case)
     if name == "splitting_path":
         assert ser["path"].sum() >= 60 and ser["lam"][ser["path"]].min() < 0.5 * ser["lam"].max()  # snap-back
+    elif name.startswith("band"):
+        assert ser["path"].sum() >= 1  # cells localized: path control on their jumps took over
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
     assert_same_history(mpirun(n, "history", case, tmp_path), ser)
@@ -181,11 +200,17 @@ def test_global_matrix_ownership_and_ghosts(tmp_path, n):
 @pytest.mark.parametrize("section, message", [
     ({"cohesive": {"form": "rp", "kn": None, "kt": None}}, "form = 'rp'"),
     ({"stages": [{"control": "arc_length"}]}, "control = 'arc_length'"),
+    ({"embedded": {"tracking": "nonlocal", "tracking_length": 0.01}}, "tracking = 'nonlocal'"),
+    ({"embedded": {"cracks": [{"points": [[0.0, 0.01], [0.01, 0.02]], "c_p": 1e4}]}}, "[[embedded.cracks]]"),
 ])
 def test_what_does_not_run_distributed_is_refused_by_name(tmp_path, section, message):
-    case = splitting_case()
-    case["cohesive"].update(section.get("cohesive", {}))
-    case["cohesive"] = {k: v for k, v in case["cohesive"].items() if v is not None}
+    if "embedded" in section:
+        case = band_case()
+        case["embedded"].update(section["embedded"])
+    else:
+        case = splitting_case()
+        case["cohesive"].update(section.get("cohesive", {}))
+        case["cohesive"] = {k: v for k, v in case["cohesive"].items() if v is not None}
     if "stages" in section:
         case["stages"][0].update(section["stages"][0])
     par = mpirun(2, "history", case, tmp_path)
@@ -201,14 +226,15 @@ def read_csv(path: Path) -> dict[str, list[str]]:
 
 
 def assert_same_table(par: dict, ser: dict, what: str) -> None:
-    """Every column alike: text equal, numbers to 1e-9 of their column's largest magnitude (the
+    """Every column alike: text equal, numbers (an empty cell: not applicable) to 1e-9 of their column's
+    largest magnitude (the
     reactions of the largest reaction: a free node's is round-off; the energy balance's error of the
     external work)."""
     assert list(par) == list(ser) and len(par[next(iter(par))]) == len(ser[next(iter(ser))]), what
     numbers = {}
     for k in ser:
         try:
-            numbers[k] = (np.array(par[k], dtype=float), np.array(ser[k], dtype=float))
+            numbers[k] = tuple(np.array([float(v) if v != "" else np.nan for v in col]) for col in (par[k], ser[k]))
         except ValueError:
             assert par[k] == ser[k], f"{what} {k}"
     reactions = max((np.nanmax(np.abs(s)) for k, (_, s) in numbers.items() if k.startswith("R_")), default=0.0)
@@ -297,3 +323,54 @@ def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     assert again.returncode == 0, again.stderr[-2000:]
     assert "resumed from the checkpoint at step 120" in (out / "run.log").read_text()
     assert (out / "history.csv").read_text() == whole
+
+
+def test_an_embedded_band_on_ranks_writes_the_serial_outputs_and_resumes(tmp_path):
+    """`mpiexec -n 2 rockfrac run` of the tracked band: history.csv, points.csv (the cut cells in the
+    serial order), the ParaView segments and run.log's onsets as a serial run's; resumed from its
+    checkpoint at step 60, the crack-path table is rebuilt from both ranks and the run ends as the
+    uninterrupted one (to 1e-9: MUMPS's parallel LU is not bit-reproducible)."""
+    import meshio
+    import tomli_w
+
+    from rockfrac.runner import run_case
+
+    case = band_case()
+    case["output"] = {"points": True, "picture": True, "vtk": True, "vtk_every": 33, "checkpoint_every": 30}
+    case_file = tmp_path / "band.toml"
+    case_file.write_text(tomli_w.dumps(case))
+    run_case(parse_case(case, str(case_file)), tmp_path / "serial")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    rockfrac = str(Path(sys.executable).parent / "rockfrac")
+
+    def launch(out: Path, *extra: str) -> None:
+        cmd = [shutil.which("mpiexec") or "mpiexec", "-n", "2", rockfrac, "run", str(case_file), "--out", str(out),
+               "--quiet", *extra]
+        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+        assert done.returncode == 1, done.stdout[-2000:] + done.stderr[-2000:]  # 1: ended at max_steps
+
+    launch(tmp_path / "mpi")
+    for name in ("history.csv", "points.csv"):
+        assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
+    cut = read_csv(tmp_path / "serial" / "points.csv")["cell"]
+    assert len(set(cut)) >= 20  # the band crossed cells of both ranks
+    ser_vtu, par_vtu = (meshio.read(tmp_path / run / "vtk" / "results_00066.vtu") for run in ("serial", "mpi"))
+    kinds = [c.type for c in ser_vtu.cells]
+    assert "line" in kinds and [c.type for c in par_vtu.cells] == kinds
+    for got, want in zip(par_vtu.cells, ser_vtu.cells):
+        np.testing.assert_array_equal(got.data, want.data)
+    for name, blocks in ser_vtu.cell_data.items():
+        for got, want in zip(par_vtu.cell_data[name], blocks):
+            scale = max(np.nanmax(np.abs(want), initial=0.0), 1e-300)
+            np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+            assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-9 * scale, name
+
+    def onsets(run: str) -> list[str]:
+        return sorted(line for line in (tmp_path / run / "run.log").read_text().splitlines() if "bifurcation" in line)
+
+    assert len(onsets("serial")) >= 20 and onsets("mpi") == onsets("serial")
+    whole = read_csv(tmp_path / "mpi" / "history.csv")
+    launch(tmp_path / "mpi", "--resume")
+    assert "resumed from the checkpoint at step 60" in (tmp_path / "mpi" / "run.log").read_text()
+    assert_same_table(read_csv(tmp_path / "mpi" / "history.csv"), whole, "resumed history.csv")

@@ -145,9 +145,11 @@ def resolve(case: Case, path: str = "<case>") -> Case:
 def refuse_distributed(case: Case, path: str) -> None:
     """CaseError for what does not run on several MPI ranks yet, named (rockfrac.parallel)."""
     why = "does not run on several MPI ranks yet; run it on one process"
-    if case.embedded is not None:
-        raise CaseError(f"{path}: [embedded]: embedded cracks {why} (their paths are tracked across the cells of "
-                        "every rank)")
+    if case.embedded is not None and case.embedded.tracking == "nonlocal":
+        raise CaseError(f"{path}: [embedded] tracking = 'nonlocal' {why} (its stress average at a crack tip "
+                        "reaches across the ranks); 'local' and 'none' do")
+    if case.embedded is not None and case.embedded.cracks:
+        raise CaseError(f"{path}: [[embedded.cracks]]: cracks cut before the first step {why}")
     for k, c in enumerate(case.cohesive_sets):
         if c.form is CohesiveForm.rp:
             raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "
@@ -191,6 +193,9 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:
         model = distribution.make_model(mesh, bulks + cohesives, part)
+    for g in bulks:  # the crack paths' decisions are the same on every rank
+        if isinstance(g, EmbeddedDruckerPrager):
+            g.paths.exchange = model
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
     if program.stages and program.stages[0].dirichlet is not None:

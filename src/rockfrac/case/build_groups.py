@@ -120,16 +120,22 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
         ede_regions = set(emb.regions)
     groups = []
+    full: dict[int, np.ndarray] = {}  # an EDE group's cells on every rank
     for section, cells, region in material_cells(case, mesh, path):
+        every = cells
         if owned is not None:
             cells = cells[owned[cells]]
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
-            g: SolidGroup = EmbeddedDruckerPrager(
+            ede = EmbeddedDruckerPrager(
                 mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
                 plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks,
                 tracking_length=emb.tracking_length, region=region, cell_ids=cells)
+            if owned is not None:
+                ede.serial_index = np.flatnonzero(owned[every])  # its cells' places among the whole group's
+            full[id(ede)] = every
+            g: SolidGroup = ede
         elif dp:
             g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section), region=region, cell_ids=cells)
         else:
@@ -137,7 +143,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         groups.append(g)
 
     embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2]
-    share_crack_paths(embedded, mesh.nodes)
+    share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded])
     if emb is not None and emb.cracks:
         cut_initial_cracks(emb, embedded, path)
     return groups

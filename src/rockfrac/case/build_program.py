@@ -286,8 +286,11 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
         found = [(k, m) for k, g in enumerate(surfaces) if (m := g.path_measure(n_dofs)) is not None]
         counts, masses = np.zeros(len(surfaces)), np.zeros(len(surfaces))
         for k, _ in found:
-            counts[k], masses[k] = surfaces[k].path_weight(), surfaces[k].measure_mass()
+            counts[k], masses[k] = surfaces[k].path_count(), surfaces[k].measure_mass()
         total_counts, total_masses = model.reduce_sum(counts), model.reduce_sum(masses)
+        has = {k for k, _ in found}
+        found_any = model.reduce_sum(np.array([1.0 if k in has else 0.0 for k in range(len(surfaces))]))
+        total_counts = np.where(found_any > 0.0, np.maximum(total_counts, 1.0), 0.0)  # each group's path_weight
         if total_counts.sum() == 0.0:
             return None
         coef = [(m, total_counts[k] / total_counts.sum() * masses[k] / total_masses[k]) for k, m in found

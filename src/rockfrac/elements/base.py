@@ -154,6 +154,11 @@ class ElementGroup(ABC):
         """How many points the path measure averages over (to combine several groups)."""
         return 0
 
+    def path_count(self) -> int:
+        """How many points this group's measure averages over now (0 allowed; on several MPI ranks,
+        this rank's): the ranks' sum, at least 1, is :meth:`path_weight` of the whole group."""
+        return self.path_weight()
+
     def measure_mass(self) -> float:
         """The total weight of the points in the path measure's own average (the integration weights
         of cohesive points): what combines the parts of one group held by several MPI ranks."""

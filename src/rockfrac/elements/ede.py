@@ -78,37 +78,41 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cells = self._candidates(state)
         tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
         cells = np.union1d(cells, tips).astype(np.int64)
-        if cells.size == 0:
-            return 1.0, {}
-        qmask = state[cells, :, S_MODE] == MODE_CONE
-        at_tip = np.isin(cells, tips)
-        qmask[at_tip] = True  # a crack tip cell: its stress direction decides (eq. 8)...
-        if self.tracking == "nonlocal" and tips.size:  # ...or the nonlocal stress at its tip point,
-            extra = sigma[:, :1].copy()  # as one more point of the cell
-            for e in tips:
-                tip = self._tip(int(e))
-                near = self.paths.nonlocal_stress(tip[0], self._nonlocal_length()) if tip is not None else None
-                if near is not None and np.all(np.isfinite(near)):
-                    extra[e, 0] = near
-            sigma = np.concatenate([sigma, extra], axis=1)
-            qmask = np.concatenate([qmask, at_tip[:, None]], axis=1)
-        ce, qi = np.nonzero(qmask)
-        e_of = cells[ce]
+        e_of, qi, screened = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
+        if cells.size:
+            qmask = state[cells, :, S_MODE] == MODE_CONE
+            at_tip = np.isin(cells, tips)
+            qmask[at_tip] = True  # a crack tip cell: its stress direction decides (eq. 8)...
+            if self.tracking == "nonlocal" and tips.size:  # ...or the nonlocal stress at its tip point,
+                extra = sigma[:, :1].copy()  # as one more point of the cell
+                for e in tips:
+                    tip = self._tip(int(e))
+                    near = self.paths.nonlocal_stress(tip[0], self._nonlocal_length()) if tip is not None else None
+                    if near is not None and np.all(np.isfinite(near)):
+                        extra[e, 0] = near
+                sigma = np.concatenate([sigma, extra], axis=1)
+                qmask = np.concatenate([qmask, at_tip[:, None]], axis=1)
+            ce, qi = np.nonzero(qmask)
+            e_of = cells[ce]
+        if e_of.size:
+            if not self.plane_strain:  # 3D: the exact search at every point
+                screened = np.full(e_of.size, -np.inf)
+            else:
+                screened = screen_plane_strain(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
+                                               self.SCREEN_SWEEP)
+        lowest_point = self._global_lowest(screened, e_of, qi)
         if e_of.size == 0:
             return 1.0, {}
-        if not self.plane_strain:  # 3D: the exact search at every point
-            screened = np.full(e_of.size, -np.inf)
-        else:
-            screened = screen_plane_strain(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
-                                           self.SCREEN_SWEEP)
         order = np.lexsort((screened, e_of))  # by cell, lowest point first
         first = order[np.concatenate(([True], e_of[order][1:] != e_of[order][:-1]))]
         lowest = first[screened[first] <= self.SCREEN_MARGIN]  # each cell's lowest point, if small
         if eligible is not None:
             lowest = lowest[np.isin(e_of[lowest], eligible)]
-        lowest_point = int(np.argmin(screened))
         chosen = set(lowest.tolist()) if exact_cells else set()
-        chosen.add(lowest_point)
+        if lowest_point is not None:
+            chosen.add(lowest_point)
+        if not chosen:  # on another rank: the lowest point and every cell that may open
+            return float(screened.min()), {}
         picks = sorted(chosen)
         where: dict[int, tuple] = {}
         best = float(screened.min())
@@ -130,6 +134,16 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             best = min(best, min(v[0] for v in where.values()))
         return best, where
 
+    def _global_lowest(self, screened: np.ndarray, e_of: np.ndarray, qi: np.ndarray) -> int | None:
+        """Index in e_of of the group's lowest screened point over every MPI rank, if this rank holds
+        it, else None (one process: the argmin). A collective call: every rank makes it."""
+        mine = None
+        if e_of.size:
+            j = int(np.argmin(screened))
+            mine = (float(screened[j]), int(self.serial_index[e_of[j]]), int(qi[j]))
+        held = [v for v in self.paths.exchange.allgather(mine) if v is not None]
+        return j if mine is not None and min(held) == mine else None
+
     def _nonlocal_length(self) -> float:
         """tracking = "nonlocal": the Gaussian length of the stress average at a tip [m]."""
         assert self.tracking_length is not None  # checked at construction
@@ -149,8 +163,11 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cell also opens where the nonlocal stress at its tip point (:meth:`CrackPaths.nonlocal_stress`)
         loses ellipticity, and takes the normal of that stress.
         """
+        paths = self.paths
+        if self.tracking != "none":
+            paths.current()
         eligible = None
-        if self.tracking != "none" and self.paths.cracks >= self.max_cracks:
+        if self.tracking != "none" and paths.cracks >= self.max_cracks:
             eligible = self._tip_cells()  # only crack tips can open: no new crack allowed
         best, where = self._scan(self.state, self.sigma, eligible)
         ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
@@ -158,22 +175,30 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             for ratio, e in ready:
                 self._open(e, ratio, where[e][2])
             return best
-        pending = [e for _, e in ready]
-        tips = set(self._tip_cells().tolist())
+        # the same decisions on every rank: the cells ready on any rank, in the serial order
+        ids, serial = self.cell_ids, paths.serial
+        mine = [(ratio, int(serial[ids[e]]), int(ids[e]), bool((self.state[e, :, S_MODE] == MODE_CONE).any()),
+                 where[e][2]) for ratio, e in ready]
+        pending = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:2])
+        k = paths.groups.index(self)
+        tips = paths.tip_cells_global(k)
         progress = True
         while pending and progress:  # a newly cut cell may give the next one its tip...
             progress = False
-            for e in list(pending):
-                tip = self._tip(e)
-                plastic = (self.state[e, :, S_MODE] == MODE_CONE).any()
-                if tip is not None and e not in tips and not plastic:
+            for cand in list(pending):
+                ratio, _, gcell, plastic, loc = cand
+                tip = paths.tip(gcell)
+                if tip is not None and gcell not in tips and not plastic:
                     continue  # ...but an elastic cell only from a tip that existed before this step
-                if tip is None and (self._cut_neighbours(e) or self.paths.cracks >= self.max_cracks):
+                if tip is None and (paths.cut_neighbours(gcell) or paths.cracks >= self.max_cracks):
                     continue  # beside a crack but not at its tip, or no new crack allowed: wait
                 if tip is None:
-                    self.paths.cracks += 1
-                self._open(e, where[e][0], where[e][2], tip)
-                pending.remove(e)
+                    paths.cracks += 1
+                group, local = paths.owner[gcell]
+                if group == k:
+                    self._open(int(local), ratio, loc, tip)
+                paths.announce(gcell)
+                pending.remove(cand)
                 progress = True
         return best
 
@@ -181,8 +206,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
     @property
     def paths(self) -> CrackPaths:
         """The crack-path registry this group shares with the other EDE groups of the model."""
-        if self._paths is None:
+        if self._paths is None:  # a registry of its own (cells cut before it existed entered at once)
             self._paths = CrackPaths(self.nodes, [self])
+            self._paths.sync()
         return self._paths
 
     def _global(self, e: int) -> int:
@@ -190,6 +216,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
 
     def _tip_cells(self) -> np.ndarray:
         """This group's uncut cells where a cut cell's surface ends on their shared edge (crack tips)."""
+        self.paths.current()
         return np.array(sorted(self.paths.tip_cells(self)), dtype=np.int64)
 
     def _cut_neighbours(self, e: int) -> list[int]:
@@ -220,7 +247,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         c_p = self.localize_cell(e, n, point=point)
         s = self.e_state[e]
         band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))
-        self.onsets.append(Onset(e, s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other,
+        self.onsets.append(Onset(int(self.serial_index[e]), s[K.E_N:K.E_N + 3].copy(), band, ratio, c_p, other,
                                  np.asarray(loc.normals), np.asarray(loc.slips)))
 
     def localize_cell(self, e: int, normal: np.ndarray, c_p: float | None = None,
@@ -250,6 +277,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         self.anchor[e, :dim] = xc
         if dim == 2:
             self.segments[e] = surface_segment(self.x[e], n[:2], xc)
+            if self._paths is not None:  # the crack-path registry's table (a shared registry)
+                self._paths.record(self._global(e), self.segments[e], n)
         elif self.x.shape[1] == 8 and abs(n[2]) <= 1e-12 and np.ptp(self.x[e, :4, 2]) <= 1e-12 * np.ptp(self.x[e]):
             self.sections[e] = surface_segment(self.x[e, :4, :2], n[:2], xc[:2])  # plane strain: the z face's trace
         w = self.wdet[e] / self.wdet[e].sum()

@@ -34,6 +34,8 @@ class EmbeddedCells(DruckerPragerSolid):
 
     def restore_checkpoint(self, saved: dict[str, np.ndarray]) -> None:
         super().restore_checkpoint(saved)
+        if self._paths is not None:
+            self._paths.stale = True  # its table is rebuilt once every group is restored
         names = ("onset_cell", "onset_scalars", "onset_normal", "onset_count", "onset_normals", "onset_slips")
         missing = [n for n in names if n not in saved]
         if missing:
@@ -56,6 +58,7 @@ class EmbeddedCells(DruckerPragerSolid):
                  tracking_length: float | None = None):
         super().__init__(nodes, cells, ref, law, region=region, cell_ids=cell_ids)
         self._paths: CrackPaths | None = None
+        self.serial_index = np.arange(cells.shape[0])  # each cell's place in its group's serial order (MPI)
         self.crack_dissipated = 0.0  # the embedded jumps' share of ``dissipated`` [J]
         self.surface_dissipated = 0.0  # sum of |S| <T> . dJ: the traction law's work on the surfaces (2D) [J]
         if band not in ("positive", "negative"):
@@ -241,6 +244,12 @@ class EmbeddedCells(DruckerPragerSolid):
     def path_weight(self) -> int:
         return max(int(self.localized().size), 1)
 
+    def path_count(self) -> int:
+        return int(self.localized().size)
+
+    def measure_mass(self) -> float:
+        return float(self.localized().size)  # the measure averages over the localized cells
+
     # -- output ----------------------------------------------------------------------------
     def point_records(self, u: np.ndarray) -> dict[str, np.ndarray]:
         """:meth:`records` with the state named, the mesh's cell numbers and the region as the set."""
@@ -249,6 +258,9 @@ class EmbeddedCells(DruckerPragerSolid):
         rec["cell"] = self.cell_ids[rec["cell"]]
         rec["set"] = np.full(rec["cell"].shape[0], self.region)
         return rec
+
+    def record_order(self) -> np.ndarray | None:
+        return self.serial_index[self.localized()]
 
     def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
         out = super().cell_fields(u)

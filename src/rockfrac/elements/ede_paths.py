@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -39,25 +40,57 @@ def _band(n: np.ndarray) -> float:
     return a + math.pi if a <= -0.5 * math.pi else a
 
 
+class Exchange(Protocol):
+    """How the ranks of a distributed model share what each holds (rockfrac.model.Model.allgather)."""
+
+    def allgather(self, value: Any) -> list[Any]: ...
+
+
+class Alone:
+    """The exchange of a model on one process: each value is everyone's."""
+
+    def allgather(self, value: Any) -> list[Any]:
+        return [value]
+
+
 class CrackPaths:
     """Crack paths across the EDE groups of a model (2D): cell adjacency over the global cell
-    numbering, the cut state of every cell whatever its group, the number of cracks started."""
+    numbering, the cut state of every cell whatever its group (and, on several MPI ranks, whatever
+    its rank), the number of cracks started.
 
-    def __init__(self, nodes: np.ndarray, groups: list):
+    The cut cells' surfaces (segment and normal) are kept in a table over the global cells, filled
+    from the groups that cut them: on one process as they cut them; on several ranks each cut is
+    announced by its owner (:meth:`announce`), so that every rank takes the same tracking decisions
+    (rockfrac.elements.ede). ``full``: each group's cells on every rank, as (global ids,
+    connectivity) in the group's serial order (default: the groups' own cells)."""
+
+    def __init__(self, nodes: np.ndarray, groups: list,
+                 full: list[tuple[np.ndarray, np.ndarray]] | None = None, exchange: Exchange | None = None):
         self.nodes = nodes
         self.groups = groups
         self.cracks = 0
-        ids = [g.cell_ids for g in groups]
-        n_cells = int(max(i.max(initial=-1) for i in ids)) + 1
-        self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each global cell
-        cells = []
-        for k, (g, i) in enumerate(zip(groups, ids)):
-            self.owner[i, 0], self.owner[i, 1] = k, np.arange(i.size)
-            cells.append((i, g.cells))
-        self.centres = [g.x[..., :2].mean(axis=1) for g in groups]  # cell centroids per group [m]
+        self.exchange: Exchange = exchange if exchange is not None else Alone()
+        self.stale = False  # the table must be rebuilt from the groups (after a checkpoint's restore)
+        full = full if full is not None else [(g.cell_ids, g.cells) for g in groups]
+        if len(full) != len(groups):
+            raise ValueError(f"{len(full)} full cell lists for {len(groups)} groups")
+        n_cells = int(max((i.max(initial=-1) for i, _ in full), default=-1)) + 1
+        self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each own cell
+        self.group_of = np.full(n_cells, -1, dtype=np.int64)  # the group of every EDE cell, any rank's
+        self.serial = np.full(n_cells, -1, dtype=np.int64)  # its index in its group's serial order
+        for k, (ids, _) in enumerate(full):
+            self.group_of[ids], self.serial[ids] = k, np.arange(ids.size)
+        for k, g in enumerate(groups):
+            self.owner[g.cell_ids, 0], self.owner[g.cell_ids, 1] = k, np.arange(g.cell_ids.size)
+        self.cut = np.zeros(n_cells, dtype=bool)  # the table of cut cells (every rank's)
+        self.segment = np.full((n_cells, 2, 2), np.nan)  # their surfaces clipped to the cells [m]
+        self.normal = np.zeros((n_cells, 3))
+        self.centres = [g.x[..., :2].mean(axis=1) for g in groups]  # own cell centroids per group [m]
         self.nbr: dict[int, list[tuple[int, int, int]]] = {}
-        gids = np.concatenate([i for i, _ in cells])
-        conn = np.vstack([c for _, c in cells])
+        gids = np.concatenate([i for i, _ in full] + [np.zeros(0, dtype=np.int64)])
+        if gids.size == 0:
+            return
+        conn = np.vstack([c for _, c in full if c.size])
         n = conn.shape[1]
         pairs = np.stack([conn, np.roll(conn, -1, axis=1)], axis=-1).reshape(-1, 2)
         owner = np.repeat(gids, n)
@@ -74,40 +107,75 @@ class CrackPaths:
         g, local = self.owner[gcell]
         return (None, -1) if g < 0 else (self.groups[g], int(local))
 
-    def is_cut(self, gcell: int) -> bool:
+    # -- the table of cut cells -------------------------------------------------------------------
+    def record(self, gcell: int, segment: np.ndarray, normal: np.ndarray) -> None:
+        """Enter a cut cell's surface in the table."""
+        self.cut[gcell] = True
+        self.segment[gcell] = segment
+        self.normal[gcell] = normal
+
+    def announce(self, gcell: int) -> None:
+        """Every rank: enter the cut of cell gcell as its owner holds it (a collective call)."""
         g, local = self._cell(gcell)
-        return g is not None and g.e_state[local, K.E_LOC] == 1.0
+        mine = None if g is None else (g.segments[local].copy(), g.e_state[local, K.E_N:K.E_N + 3].copy())
+        held = [v for v in self.exchange.allgather(mine) if v is not None]
+        if len(held) != 1:
+            raise RuntimeError(f"cell {gcell} is held by {len(held)} ranks, not one")
+        self.record(gcell, *held[0])
+
+    def sync(self) -> None:
+        """Rebuild the table from every rank's groups (a collective call)."""
+        mine = []
+        for g in self.groups:
+            loc = np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0)
+            mine.append((g.cell_ids[loc], g.segments[loc], g.e_state[loc, K.E_N:K.E_N + 3]))
+        self.cut[:] = False
+        self.segment[:] = np.nan
+        self.normal[:] = 0.0
+        for part in self.exchange.allgather(mine):
+            for ids, seg, normal in part:
+                self.cut[ids], self.segment[ids], self.normal[ids] = True, seg, normal
+        self.stale = False
+
+    def current(self) -> None:
+        """The table brought up to date where it is stale (every rank restored a checkpoint)."""
+        if self.stale:
+            self.sync()
+
+    # -- tracking -----------------------------------------------------------------------------------
+    def is_cut(self, gcell: int) -> bool:
+        return bool(self.cut[gcell])
 
     def cut_neighbours(self, gcell: int) -> list[int]:
-        return [c for c, _, _ in self.nbr.get(gcell, []) if self.is_cut(c)]
+        return [c for c, _, _ in self.nbr.get(gcell, []) if self.cut[c]]
 
     def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, neighbour normal) where a cut neighbour's surface ends on the edge shared with gcell."""
         for c, a, b in self.nbr.get(gcell, []):
-            if not self.is_cut(c):
+            if not self.cut[c]:
                 continue
-            g, local = self._cell(c)
             xa, xb = self.nodes[a, :2], self.nodes[b, :2]
             size = np.linalg.norm(xb - xa)
-            for p in g.segments[local]:  # p on edge ab: collinear, between its ends
+            for p in self.segment[c]:  # p on edge ab: collinear, between its ends
                 cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
                 along = np.dot(p - xa, xb - xa) / size**2
                 if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
-                    return p.copy(), g.e_state[local, K.E_N:K.E_N + 3].copy()
+                    return p.copy(), self.normal[c].copy()
         return None
+
+    def tip_cells_global(self, k: int) -> set[int]:
+        """Global ids of the uncut cells of group k (on any rank) at a crack tip."""
+        out = set()
+        for gcell in np.flatnonzero(self.cut).tolist():
+            for c, _, _ in self.nbr.get(gcell, []):
+                if self.group_of[c] == k and not self.cut[c] and c not in out and self.tip(c) is not None:
+                    out.add(c)
+        return out
 
     def tip_cells(self, group) -> set[int]:
         """Local indices in ``group`` of its uncut cells at a crack tip."""
         k = self.groups.index(group)
-        out = set()
-        for g in self.groups:
-            ids = g.cell_ids
-            for e in np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0):
-                for c, _, _ in self.nbr.get(int(ids[e]), []):
-                    gk, local = self.owner[c]
-                    if gk == k and not self.is_cut(c) and self.tip(c) is not None:
-                        out.add(int(local))
-        return out
+        return {int(self.owner[c, 1]) for c in self.tip_cells_global(k) if self.owner[c, 0] == k}
 
     def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
         """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
@@ -144,9 +212,11 @@ class CrackPaths:
         return n if n @ ref >= 0.0 else -n
 
 
-def share_crack_paths(groups: list, nodes: np.ndarray) -> None:
-    """Make the EDE groups of a model share one crack-path registry (crack tracking across regions)."""
+def share_crack_paths(groups: list, nodes: np.ndarray, full: list[tuple[np.ndarray, np.ndarray]] | None = None
+                      ) -> None:
+    """Make the EDE groups of a model share one crack-path registry (crack tracking across regions);
+    ``full``: each group's cells on every MPI rank (see :class:`CrackPaths`)."""
     if groups:
-        paths = CrackPaths(nodes, groups)
+        paths = CrackPaths(nodes, groups, full)
         for g in groups:
             g._paths = paths

@@ -79,31 +79,29 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
 def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None, dict]:
     """End points of the embedded crack segments, their host cells and fields: in 2D the surface
     clipped to its cell; for a hexahedron of a plane-strain slab cut normal to z, the surface's trace
-    on the cell's z face (a general 3D surface has no segment: not drawn)."""
-    x0: list[np.ndarray] = []
-    x1: list[np.ndarray] = []
-    host: list[np.ndarray] = []
-    data: dict[str, list[np.ndarray]] = {"jump": [], "traction": [], "c": [], "tan_phi": [], "state": []}
+    on the cell's z face (a general 3D surface has no segment: not drawn). Each group's segments of
+    every MPI rank, in the group's serial order."""
+    parts = []
     for g in built.embeddeds:
         cells = g.localized()
         lines = g.segments if g.dim == 2 else g.sections
         drawn = np.isfinite(lines[cells]).all(axis=(1, 2))
-        if not drawn.any():
-            continue
         rec = {k: v[drawn] for k, v in g.records().items()}
         cells = cells[drawn]
         seg = lines[cells]
-        x0.append(seg[:, 0])
-        x1.append(seg[:, 1])
-        host.append(g.cell_ids[cells])
-        data["jump"].append(np.column_stack([rec["jump_t"], rec["jump_n"]]))
-        data["traction"].append(np.column_stack([rec["T_t"], rec["T_n"]]))
-        data["c"].append(rec["c"])
-        data["tan_phi"].append(rec["tan_phi"])
-        data["state"].append(np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8))
-    if not x0:
+        mine = {"x0": seg[:, 0], "x1": seg[:, 1], "host": g.cell_ids[cells],
+                "jump": np.column_stack([rec["jump_t"], rec["jump_n"]]),
+                "traction": np.column_stack([rec["T_t"], rec["T_n"]]), "c": rec["c"], "tan_phi": rec["tan_phi"],
+                "state": np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8)}
+        whole = built.model.gather_records(mine, g.serial_index[cells])
+        if whole is not None and whole["host"].size:
+            parts.append(whole)
+    if not parts:
         return None, None, {}
-    return (np.vstack(x0), np.vstack(x1)), np.concatenate(host), {k: np.concatenate(v) for k, v in data.items()}
+    x0, x1 = np.vstack([p["x0"] for p in parts]), np.vstack([p["x1"] for p in parts])
+    names = ("jump", "traction", "c", "tan_phi", "state")
+    return (x0, x1), np.concatenate([p["host"] for p in parts]), {k: np.concatenate([p[k] for p in parts])
+                                                                  for k in names}
 
 
 def step_output(built, u: np.ndarray) -> StepFields:

@@ -79,7 +79,7 @@ def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str
             row["det_ratio"] = min(events)
             row["n_localized"] = int(sum(g.localized_count() for g in groups))
         solids = [g for g in groups if isinstance(g, SolidGroup)]
-        fractions = [(f, g.wdet.size) for g in solids if (f := g.plastic_fraction()) is not None]
+        fractions = [(f, g.wdet.size) for g in solids if g.wdet.size and (f := g.plastic_fraction()) is not None]
         if fractions:
             row["bulk_plastic"] = sum(f * n for f, n in fractions) / sum(n for _, n in fractions)
         return row
@@ -88,7 +88,7 @@ def crack_columns(groups: list[ElementGroup], rec: dict | None, means: tuple[str
         row["det_ratio"] = model.reduce_min(min(events, default=np.inf))
         row["n_localized"] = int(model.reduce_sum(sum(g.localized_count() for g in groups)))
     solids = [g for g in groups if isinstance(g, SolidGroup)]
-    fractions = [(f, g.wdet.size) for g in solids if (f := g.plastic_fraction()) is not None]
+    fractions = [(f, g.wdet.size) for g in solids if g.wdet.size and (f := g.plastic_fraction()) is not None]
     if model.reduce_any(bool(fractions)):
         row["bulk_plastic"] = (model.reduce_sum(float(sum(f * n for f, n in fractions)))
                                / model.reduce_sum(float(sum(n for _, n in fractions))))

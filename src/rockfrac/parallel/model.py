@@ -179,6 +179,9 @@ class DistributedModel(Model):
     def share(self, value: Any) -> Any:
         return self.comm.bcast(value, root=0)
 
+    def allgather(self, value: Any) -> list[Any]:
+        return self.comm.allgather(value)
+
     def agree(self, failure: str | None) -> str | None:
         return next((f for f in self.comm.allgather(failure) if f is not None), None)
 

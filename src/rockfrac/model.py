@@ -225,6 +225,11 @@ class Model:
         """Every rank's value, in rank order, on every rank (serial: [value])."""
         return [value]
 
+    def owned(self, x: np.ndarray) -> np.ndarray:
+        """x on the dofs this rank owns, zero elsewhere: a vector each dof of which is held by one
+        rank only, so that dot products sum over the ranks (serial: x)."""
+        return x
+
     def agree(self, failure: str | None) -> str | None:
         """The first rank's failure, on every rank (serial: the failure): a check that may fail on one
         rank only ends them all."""

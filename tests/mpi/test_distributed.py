@@ -109,6 +109,31 @@ def band_case(tracking: str = "local", max_steps: int = 66) -> dict:
     return case
 
 
+PATHS = ROOT / "examples" / "path_following"
+
+
+def bar_case(control: str) -> dict:
+    """The path-following bar of examples/path_following (a crack across its middle, under control =
+    'arc_length' or 'energy') with an EP crack (kn = kt = 1e11 Pa/m) on 4 x 16 quads. (Its opening
+    control variant is not a test of the ranks: five identical crack points after the peak are a
+    bifurcation that round-off decides; the notched beam below is.)"""
+    case = tomllib.loads((PATHS / f"bar_{control}.toml").read_text())
+    case["cohesive"].update(form="ep", kn=1e11, kt=1e11)
+    case["mesh"].update(nx=4, ny=16)
+    case["stages"][0]["max_steps"] = 150
+    return case
+
+
+def cmod_case(max_steps: int = 80) -> dict:
+    """The notched beam in three-point bending under CMOD control (opening control, bilinear EP
+    surfaces on the ligament): past its peak within max_steps."""
+    folder = ROOT / "examples" / "rock_tests" / "bending"
+    case = tomllib.loads((folder / "notched_beam_cmod.toml").read_text())
+    case["mesh"]["file"] = str(folder / case["mesh"]["file"])
+    case["stages"][0]["max_steps"] = max_steps
+    return case
+
+
 CASES = {
     # EP surfaces of the paper's law, load control; the activation is located as an event
     "paper_ep": lambda: paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3),
@@ -116,20 +141,36 @@ CASES = {
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
     "band_none": lambda: band_case("none", 43),
+    # the path controls whose measures are dot products over every rank's dofs
+    "bar_arc_length": lambda: bar_case("arc_length"),
+    "bar_energy": lambda: bar_case("energy"),
+    "cmod_opening": cmod_case,
 }
 
 
-def assert_same_history(par: dict, ser: dict) -> None:
+def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> None:
+    """any_iterations: the Newton iterations of a step may differ by more than one, their total by
+    at most 5 % (see CHATTY)."""
     assert "error" not in par, str(par.get("error"))
     assert str(par["message"]) == str(ser["message"])
     assert par["lam"].shape == ser["lam"].shape
     off = np.abs(par["iterations"] - ser["iterations"])
-    assert off.max() <= 1 and np.count_nonzero(off) <= 0.02 * off.size, np.flatnonzero(off)
+    if any_iterations:
+        assert abs(par["iterations"].sum() - ser["iterations"].sum()) <= 0.05 * ser["iterations"].sum()
+    else:
+        assert off.max() <= 1 and np.count_nonzero(off) <= 0.02 * off.size, np.flatnonzero(off)
     np.testing.assert_array_equal(par["path"], ser["path"])
     assert np.abs(par["lam"] - ser["lam"]).max() <= 1e-9
     for key in ("u", "f_int"):
         scale = np.abs(ser[key]).max(axis=1, keepdims=True)
         assert (np.abs(par[key] - ser[key]) / scale).max() <= 1e-9, key
+
+
+# Cases whose Newton iterations per step are not a test of the ranks: at the kink of the bilinear
+# law a point's trial sits on its switch to round-off, and Newton reaches the same solution (1e-13)
+# in 3 or in 7 iterations depending on the last bits of the residual (measured on one process and
+# on 2 ranks).
+CHATTY = {"cmod_opening"}
 
 
 @pytest.mark.parametrize("n", [2, 3])
@@ -141,9 +182,13 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
         assert ser["path"].sum() >= 60 and ser["lam"][ser["path"]].min() < 0.5 * ser["lam"].max()  # snap-back
     elif name.startswith("band"):
         assert ser["path"].sum() >= 1  # cells localized: path control on their jumps took over
+    elif name.startswith("bar"):
+        assert ser["path"].sum() >= 20 and ser["lam"][-1] < ser["lam"].max()  # past the peak under control
+    elif name.startswith("cmod"):
+        assert ser["path"].sum() == ser["path"].size  # every step under CMOD control
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
-    assert_same_history(mpirun(n, "history", case, tmp_path), ser)
+    assert_same_history(mpirun(n, "history", case, tmp_path), ser, any_iterations=name in CHATTY)
 
 
 def test_distributed_3d_joint_equals_serial(tmp_path):
@@ -199,7 +244,6 @@ def test_global_matrix_ownership_and_ghosts(tmp_path, n):
 
 @pytest.mark.parametrize("section, message", [
     ({"cohesive": {"form": "rp", "kn": None, "kt": None}}, "form = 'rp'"),
-    ({"stages": [{"control": "arc_length"}]}, "control = 'arc_length'"),
     ({"embedded": {"tracking": "nonlocal", "tracking_length": 0.01}}, "tracking = 'nonlocal'"),
     ({"embedded": {"cracks": [{"points": [[0.0, 0.01], [0.01, 0.02]], "c_p": 1e4}]}}, "[[embedded.cracks]]"),
 ])

@@ -160,9 +160,6 @@ def refuse_distributed(case: Case, path: str) -> None:
     for k, st in enumerate(case.stages or []):
         if st.gravity is not None or st.in_situ:
             raise CaseError(f"{path}: [stages {k + 1}]: gravity and in_situ loads {why}")
-        if st.control in ("arc_length", "energy", "opening"):
-            raise CaseError(f"{path}: [stages {k + 1}] control = {st.control!r} {why}; control = 'path' (the "
-                            "cracks' jumps) and 'load' do")
 
 
 def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:

@@ -244,12 +244,12 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
     if stage.max_steps is None:
         raise CaseError(f"{path}: {key}: max_steps is not resolved")
     if stage.control == "arc_length":
-        return arc_length_path(mesh.dim * mesh.n_nodes, stage.path_increment, stage.max_steps)
+        return arc_length_path(mesh.dim * mesh.n_nodes, stage.path_increment, stage.max_steps, model)
     if stage.control == "energy":
         if stage.path_increment is None:
             raise CaseError(f"{path}: {key} path_increment: control = 'energy' needs the energy released per step "
                             "[J/m in 2D (per unit thickness), J in 3D]")
-        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment, active, stage.max_steps)
+        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment, active, stage.max_steps, model)
     if stage.control == "opening":
         found = {m.name: m for m in monitors}
         m = found.get(stage.monitor or "")
@@ -257,7 +257,7 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
             openings = sorted(n for n, v in found.items() if v.direction is not None)
             raise CaseError(f"{path}: {key} monitor = {stage.monitor!r}: not an opening monitor of [[monitors]] "
                             f"(openings: {', '.join(openings) or 'none'})")
-        return crack_path(lambda: opening_measure(m, mesh.dim, n_dofs), stage.path_increment, lambda: True,
+        return crack_path(lambda: opening_measure(m, mesh.dim, n_dofs, model), stage.path_increment, lambda: True,
                           stage.max_steps, f"opening {m.name}", rigid_ok=True)
     if not surfaces:
         raise CaseError(f"{path}: {key} control = 'path' needs a cohesive surface or an [embedded] section")
@@ -320,13 +320,17 @@ def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None
                         "displacement-loaded stage with control = 'path', 'opening' or 'arc_length'")
 
 
-def opening_measure(m: Monitor, dim: int, n_dofs: int) -> Measure:
-    """g(u) = e . (mean u of nodes[1] - mean u of nodes[0]): the monitor's opening [m], linear in u."""
+def opening_measure(m: Monitor, dim: int, n_dofs: int, model: Model | None = None) -> Measure:
+    """g(u) = e . (mean u of nodes[1] - mean u of nodes[0]): the monitor's opening [m], linear in u
+    (on a distributed ``model``, the gradient over each rank's owned dofs, the value summed)."""
     assert m.direction is not None
     grad = np.zeros(n_dofs)
     for sign, ids in ((-1.0, m.nodes[0]), (1.0, m.nodes[1])):
         for a in range(dim):
             np.add.at(grad, ids * dim + a, sign * m.direction[a] / ids.shape[0])
+    if model is not None and model.distributed:
+        part = model.owned(grad)
+        return lambda u: (model.reduce_sum(float(part @ u)), part)
     return lambda u: (float(grad @ u), grad)
 
 

@@ -182,6 +182,9 @@ class DistributedModel(Model):
     def allgather(self, value: Any) -> list[Any]:
         return self.comm.allgather(value)
 
+    def owned(self, x: np.ndarray) -> np.ndarray:
+        return np.where(self.layout.owned_mask, x, 0.0)
+
     def agree(self, failure: str | None) -> str | None:
         return next((f for f in self.comm.allgather(failure) if f is not None), None)
 

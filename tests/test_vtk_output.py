@@ -13,6 +13,7 @@ from rockfrac.output.vtk import (
     crack_segments_from_points,
     interpolate_nodal,
     pad_cell_data,
+    piece_of,
     step_fields,
 )
 
@@ -203,3 +204,40 @@ def test_interpolation_in_distorted_cells():
     np.testing.assert_allclose(
         interpolate_nodal(f, nodes, tri, "tri3", np.zeros(20, int), bary @ nodes[:3]), bary @ f[:3],
         atol=1e-12)
+
+
+def test_pieces_of_a_step_join_into_it(tmp_path):
+    """The pieces of an MPI run (rockfrac.output.vtk.piece_of): each holds its cells and the points
+    they use, with node_id and cell_id back into the whole grid; together they are the whole grid,
+    and the .pvtu written by write_piece declares every field with its VTK type and components."""
+    whole = fields_2d(3)
+    owner = [np.array([0, 1]), np.array([1]), np.array([0])]  # bulk, interface, segment: their ranks
+    pieces = [piece_of(whole, [o == r for o in owner]) for r in range(2)]
+    points = np.full(whole.points.shape, np.nan)
+    for piece in pieces:
+        points[piece.point_data["node_id"]] = piece.points
+        np.testing.assert_array_equal(piece.point_data["displacement"],
+                                      whole.point_data["displacement"][piece.point_data["node_id"]])
+        for (kind, conn), rows in zip(piece.cells, piece.cell_data["cell_id"]):
+            full = dict(whole.cells)[kind] if kind != "quad" else None
+            if full is not None:
+                np.testing.assert_array_equal(piece.point_data["node_id"][conn], full[rows])
+    np.testing.assert_array_equal(points, whole.points)
+    assert [k for k, _ in pieces[0].cells] == ["quad", "line"] and [k for k, _ in pieces[1].cells] == ["quad", "quad"]
+    np.testing.assert_array_equal(pieces[1].cell_data["cell_id"][1], [0])  # the interface, its block's first
+    np.testing.assert_array_equal(pieces[1].cell_data["state"][1], whole.cell_data["state"][1])
+    series = [VtkSeries(tmp_path, rank=r, ranks=2) for r in range(2)]
+    waited = []
+    series[1].write_piece(7, 7.0, pieces[1], lambda: waited.append(1))
+    series[0].write_piece(7, 7.0, pieces[0], lambda: waited.append(0))
+    assert waited == [1, 0] and pvd_entries(tmp_path / "results.pvd") == [(7.0, "results_00007.pvtu")]
+    root = ET.parse(tmp_path / "results_00007.pvtu").getroot()
+    assert [e.get("Source") for e in root.iter("Piece")] == ["results_00007_p0.vtu", "results_00007_p1.vtu"]
+    declared = {e.get("Name"): (e.get("type"), e.get("NumberOfComponents"))
+                for e in root.find("PUnstructuredGrid/PCellData")}
+    assert declared["cell_kind"] == ("Int8", "1") and declared["stress"] == ("Float64", "6")
+    assert declared["cell_id"] == ("Int64", "1")
+    back = meshio.read(tmp_path / "results_00007_p1.vtu")
+    assert set(back.cell_data) == set(declared) and set(back.point_data) == {"displacement", "node_id"}
+    VtkSeries(tmp_path, rank=0, ranks=2)  # a new series deletes the pieces and the .pvtu
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.pvd"]

@@ -270,11 +270,24 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) else POINT_COLUMNS
             extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
             observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
-        if case.output.vtk:  # an MPI run: every rank makes the fields (collective), rank 0 writes them whole
-            from rockfrac.output.fields import step_output
+        if case.output.vtk:  # an MPI run: one piece per rank and rank 0's .pvtu joining them
+            from rockfrac.output.fields import step_output, step_piece
 
-            observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every,
-                                             lambda u: step_output(built, u), keep, write=lead))
+            if distribution is None:
+                observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every,
+                                                 lambda u: step_output(built, u), keep))
+            else:
+                ranks = int(model.reduce_sum(1))
+
+                def barrier() -> None:
+                    model.agree(None)
+
+                if not lead:  # rank 0 made the folder (and deleted an old series) before the others go on
+                    barrier()
+                observers.append(VtkSeriesWriter(out / "vtk", case.output.vtk_every, lambda u: step_piece(built, u),
+                                                 keep, (distribution.rank, ranks, barrier)))
+                if lead:
+                    barrier()
         observers.append(log)
         if progress is not None and lead:
             observers.append(Progress(progress))

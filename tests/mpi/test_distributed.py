@@ -290,6 +290,67 @@ def assert_same_table(par: dict, ser: dict, what: str) -> None:
         assert np.nanmax(np.abs(p - s), initial=0.0) <= 1e-9 * scale, f"{what} {k}"
 
 
+def _flat(mesh) -> tuple[dict[int, np.ndarray], np.ndarray, dict[str, np.ndarray]]:
+    """A meshio grid's cells by cell_kind (meshio joins neighbouring blocks of one cell type), the
+    kind of every cell, and its cell fields, cell by cell in the file's order."""
+    kind = np.concatenate(mesh.cell_data["cell_kind"]).astype(int)
+    conn: dict[int, list] = {}
+    for block, kinds in zip(mesh.cells, mesh.cell_data["cell_kind"]):
+        for k in np.unique(kinds):
+            conn.setdefault(int(k), []).append(block.data[kinds == k])
+    data = {}
+    for name, blocks in mesh.cell_data.items():
+        blocks = [b.reshape(b.shape[0], -1).astype(float) for b in blocks]
+        data[name] = np.concatenate(blocks)
+    return {k: np.vstack(v) for k, v in conn.items()}, kind, data
+
+
+def assert_pieces_are_the_serial_grid(pvtu: Path, vtu: Path, n: int) -> None:
+    """The n VTU pieces a .pvtu joins, put together by their node_id and cell_id fields, are the
+    serial run's VTU: the same points (the embedded segments' ends to 1e-12: they follow the normals
+    of the stresses at bifurcation), cells (by kind, in the serial order) and fields to 1e-9."""
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    root = ET.parse(pvtu).getroot()
+    sources = [e.get("Source") for e in root.iter("Piece")]
+    assert len(sources) == n and all((pvtu.parent / f).exists() for f in sources)
+    ser = meshio.read(vtu)
+    declared = {e.get("Name") for e in root.find("PUnstructuredGrid/PCellData")}
+    assert declared == set(ser.cell_data) | {"cell_id"}
+    ser_conn, ser_kind, ser_data = _flat(ser)
+    offset = {k: int(np.flatnonzero(ser_kind == k)[0]) for k in ser_conn}  # kinds are in blocks, in order
+    points = np.full(ser.points.shape, np.nan)
+    point_data = {k: np.full(v.shape, np.nan) for k, v in ser.point_data.items()}
+    conn = {k: np.full(c.shape, -1) for k, c in ser_conn.items()}
+    data = {k: np.full(v.shape, np.nan) for k, v in ser_data.items()}
+    for src in sources:
+        piece = meshio.read(pvtu.parent / src)
+        ids = piece.point_data["node_id"]
+        points[ids] = piece.points
+        for k in point_data:
+            point_data[k][ids] = piece.point_data[k]
+        p_conn, p_kind, p_data = _flat(piece)
+        cell_id = p_data["cell_id"][:, 0].astype(int)
+        for k, c in p_conn.items():
+            conn[k][cell_id[p_kind == k]] = ids[c]
+        rows = np.array([offset[k] for k in p_kind]) + cell_id
+        for k in data:
+            data[k][rows] = p_data[k]
+    n_nodes = int(ser_conn[0].max()) + 1  # (cell kind 0: bulk) the mesh nodes, then the segment ends
+    np.testing.assert_array_equal(points[:n_nodes], ser.points[:n_nodes])
+    assert np.abs(points - ser.points).max() <= 1e-12 * np.abs(ser.points).max()  # ends: from the normals
+    for k, want in ser_conn.items():
+        np.testing.assert_array_equal(conn[k], want)
+    for k, want in ser.point_data.items():
+        assert np.abs(point_data[k] - want).max() <= 1e-9 * np.abs(want).max(), k
+    for k, want in ser_data.items():
+        scale = max(np.nanmax(np.abs(want), initial=0.0), 1e-300)
+        np.testing.assert_array_equal(np.isnan(data[k]), np.isnan(want))
+        assert np.nanmax(np.abs(data[k] - want), initial=0.0) <= 1e-9 * scale, k
+
+
 @pytest.mark.parametrize("n", [2, 3])
 def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     """`mpiexec -n N rockfrac run` of the disc split under path control, with its stop rule and
@@ -314,19 +375,14 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     for name in ("history.csv", "points.csv"):
         assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
     assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
-    import meshio  # the ParaView series, rank 0's, whole: every field as the serial one's
-
-    files = sorted(p.name for p in (tmp_path / "serial" / "vtk").glob("*.vtu"))
-    assert len(files) == 3 and files == sorted(p.name for p in (tmp_path / "mpi" / "vtk").glob("*.vtu"))
-    ser_vtu, par_vtu = (meshio.read(tmp_path / run / "vtk" / files[-1]) for run in ("serial", "mpi"))
-    np.testing.assert_array_equal(par_vtu.points, ser_vtu.points)
-    for name, values in ser_vtu.point_data.items():
-        assert np.abs(par_vtu.point_data[name] - values).max() <= 1e-9 * np.abs(values).max(), name
-    for name, blocks in ser_vtu.cell_data.items():
-        for got, want in zip(par_vtu.cell_data[name], blocks):
-            scale = max(np.nanmax(np.abs(want), initial=0.0), 1e-300)
-            np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
-            assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-9 * scale, name
+    # the ParaView series: one piece per rank, joined by a .pvtu per step listed in the .pvd
+    files = sorted(p.stem for p in (tmp_path / "serial" / "vtk").glob("*.vtu"))
+    assert len(files) == 3 and files == sorted(p.stem for p in (tmp_path / "mpi" / "vtk").glob("*.pvtu"))
+    pvd = (tmp_path / "mpi" / "vtk" / "results.pvd").read_text()
+    assert all(f"{f}.pvtu" in pvd for f in files) and ".vtu" not in pvd.replace(".pvtu", "")
+    for f in files:
+        assert_pieces_are_the_serial_grid(tmp_path / "mpi" / "vtk" / f"{f}.pvtu",
+                                          tmp_path / "serial" / "vtk" / f"{f}.vtu", n)
     log = (tmp_path / "mpi" / "run.log").read_text()
     assert f"MPI: {n} ranks" in log and "linear solver: petsc" in log
     # a folder holding a run: rank 0's refusal ends every rank, exit code 2, said once
@@ -399,16 +455,10 @@ def test_an_embedded_band_on_ranks_writes_the_serial_outputs_and_resumes(tmp_pat
         assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
     cut = read_csv(tmp_path / "serial" / "points.csv")["cell"]
     assert len(set(cut)) >= 20  # the band crossed cells of both ranks
-    ser_vtu, par_vtu = (meshio.read(tmp_path / run / "vtk" / "results_00066.vtu") for run in ("serial", "mpi"))
-    kinds = [c.type for c in ser_vtu.cells]
-    assert "line" in kinds and [c.type for c in par_vtu.cells] == kinds
-    for got, want in zip(par_vtu.cells, ser_vtu.cells):
-        np.testing.assert_array_equal(got.data, want.data)
-    for name, blocks in ser_vtu.cell_data.items():
-        for got, want in zip(par_vtu.cell_data[name], blocks):
-            scale = max(np.nanmax(np.abs(want), initial=0.0), 1e-300)
-            np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
-            assert np.nanmax(np.abs(got - want), initial=0.0) <= 1e-9 * scale, name
+    ser_vtu = meshio.read(tmp_path / "serial" / "vtk" / "results_00066.vtu")
+    assert "line" in [c.type for c in ser_vtu.cells]  # the band's segments, in pieces of both ranks
+    assert_pieces_are_the_serial_grid(tmp_path / "mpi" / "vtk" / "results_00066.pvtu",
+                                      tmp_path / "serial" / "vtk" / "results_00066.vtu", 2)
 
     def onsets(run: str) -> list[str]:
         return sorted(line for line in (tmp_path / run / "run.log").read_text().splitlines() if "bifurcation" in line)

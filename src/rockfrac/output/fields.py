@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
-from rockfrac.output.vtk import CrackState, StepFields, step_fields
+from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
 
 
 def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
@@ -105,7 +105,29 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
 
 
 def step_output(built, u: np.ndarray) -> StepFields:
-    """The ParaView fields of the committed state at displacement u."""
+    """The ParaView fields of the committed state at displacement u (on several MPI ranks, the whole
+    model's, a collective call)."""
+    return _step_output(built, u)[0]
+
+
+def step_piece(built, u: np.ndarray) -> StepFields:
+    """This MPI rank's piece of the step's fields: its own bulk cells, interface cells and embedded
+    segments (a collective call; see rockfrac.output.vtk.piece_of)."""
+    whole, hosts = _step_output(built, u)
+    part, rank = built.partition, built.model.rank
+    keep = []
+    for blocks in whole.cell_data["cell_kind"]:
+        kind = CellKind(int(blocks[0])) if blocks.size else None
+        if kind is CellKind.BULK:
+            keep.append(part.cell_part == rank)
+        elif kind is CellKind.INTERFACE:
+            keep.append(part.interface_part == rank)
+        else:
+            keep.append(part.cell_part[hosts] == rank)
+    return piece_of(whole, keep)
+
+
+def _step_output(built, u: np.ndarray) -> tuple[StepFields, np.ndarray | None]:
     mesh = built.mesh
     disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
@@ -117,4 +139,4 @@ def step_output(built, u: np.ndarray) -> StepFields:
         bulk_data=_bulk_fields(built, u),
         interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
-    )
+    ), hosts

@@ -70,22 +70,27 @@ class PointsCsv(Observer):
 class VtkSeriesWriter(Observer):
     """The ParaView series: every ``every``-th step, its fields from ``fields(u)``.
 
-    write False: the fields are made but not written (an MPI rank other than 0: making them is a
-    collective call, rank 0 writes them whole)."""
+    pieces: an MPI run's (rank, number of ranks, a barrier): each rank writes the piece
+    ``fields(u)`` gives it and rank 0 the .pvtu joining them (rockfrac.output.vtk.VtkSeries)."""
 
-    def __init__(self, folder: Path, every: int, fields: Callable, resume_at: int | None, write: bool = True):
+    def __init__(self, folder: Path, every: int, fields: Callable, resume_at: int | None,
+                 pieces: tuple[int, int, Callable[[], None]] | None = None):
         from rockfrac.output.vtk import VtkSeries
 
-        self.series = VtkSeries(folder, resume=resume_at is not None) if write else None
-        if resume_at is not None and self.series is not None:
+        rank, ranks = (pieces[0], pieces[1]) if pieces is not None else (0, 1)
+        self.barrier = pieces[2] if pieces is not None else None
+        self.series = VtkSeries(folder, resume=resume_at is not None, rank=rank, ranks=ranks)
+        if resume_at is not None:
             self.series.truncate_after(resume_at)
         self.every, self.fields = every, fields
 
     def step(self, step: Step) -> None:
         if step.info.step % self.every == 0:
             fields = self.fields(step.info.u)
-            if self.series is not None:
+            if self.barrier is None:
                 self.series.write(step.info.step, float(step.info.step), fields)
+            else:
+                self.series.write_piece(step.info.step, float(step.info.step), fields, self.barrier)
 
 
 class Quiet(Observer):

@@ -45,7 +45,7 @@ import enum
 import os
 import re
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -111,6 +111,56 @@ class StepFields:
         itype = np.int32 if self.points.shape[0] < 2**31 else np.int64
         cells = [(kind, np.ascontiguousarray(conn, dtype=itype)) for kind, conn in self.cells]
         return meshio.Mesh(self.points, cells, point_data=self.point_data, cell_data=self.cell_data)
+
+
+def piece_of(fields: StepFields, keep: Sequence[np.ndarray]) -> StepFields:
+    """The part of a step's grid made of the cells ``keep`` (a mask per block): the points they use,
+    renumbered, with the point field ``node_id`` (each point's index in the whole grid) and the cell
+    field ``cell_id`` (each cell's index in its block of the whole grid). Every field keeps its
+    name, dtype and components, so the pieces of one grid fit together in a .pvtu."""
+    if len(keep) != len(fields.cells):
+        raise ValueError(f"{len(keep)} masks for {len(fields.cells)} blocks")
+    chosen = [np.flatnonzero(k) for k in keep]
+    used = np.zeros(fields.points.shape[0], dtype=bool)
+    for (_, conn), rows in zip(fields.cells, chosen):
+        used[conn[rows].ravel()] = True
+    node_id = np.flatnonzero(used)
+    local = np.full(fields.points.shape[0], -1, dtype=np.int64)
+    local[node_id] = np.arange(node_id.size)
+    blocks = [b for b, rows in enumerate(chosen) if rows.size]
+    cells = [(fields.cells[b][0], local[fields.cells[b][1][chosen[b]]]) for b in blocks]
+    cell_data = {name: [arrays[b][chosen[b]] for b in blocks] for name, arrays in fields.cell_data.items()}
+    cell_data["cell_id"] = [chosen[b].astype(np.int64) for b in blocks]
+    point_data = {name: arr[node_id] for name, arr in fields.point_data.items()}
+    point_data["node_id"] = node_id.astype(np.int64)
+    return StepFields(fields.points[node_id], cells, point_data, cell_data)
+
+
+_VTK_TYPES = {"f8": "Float64", "f4": "Float32", "i1": "Int8", "i2": "Int16", "i4": "Int32", "i8": "Int64",
+              "u1": "UInt8", "u2": "UInt16", "u4": "UInt32", "u8": "UInt64"}
+
+
+def _vtk_array(name: str, arr: np.ndarray) -> str:
+    kind = _VTK_TYPES[np.dtype(arr.dtype).str.lstrip("<>|=")]
+    comps = int(np.prod(arr.shape[1:])) if arr.ndim > 1 else 1
+    return f'      <PDataArray type="{kind}" Name={quoteattr(name)} NumberOfComponents="{comps}"/>'
+
+
+def pvtu_text(piece: StepFields, sources: Sequence[str]) -> str:
+    """The .pvtu that joins the VTU pieces ``sources`` (files next to it) into one grid for ParaView;
+    ``piece``: one of them, whose fields every piece has."""
+    first = {name: blocks[0] for name, blocks in piece.cell_data.items() if blocks}
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="PUnstructuredGrid" version="0.1" byte_order="LittleEndian">',
+             '  <PUnstructuredGrid GhostLevel="0">', "    <PPointData>"]
+    lines += [_vtk_array(name, arr) for name, arr in piece.point_data.items()]
+    lines += ["    </PPointData>", "    <PCellData>"]
+    lines += [_vtk_array(name, arr) for name, arr in first.items()]
+    lines += ["    </PCellData>", "    <PPoints>", _vtk_array("Points", piece.points).replace(' Name="Points"', ""),
+              "    </PPoints>"]
+    lines += [f"    <Piece Source={quoteattr(src)}/>" for src in sources]
+    lines += ["  </PUnstructuredGrid>", "</VTKFile>", ""]
+    return "\n".join(lines)
 
 
 def _pad_columns(arr: np.ndarray, width: int) -> np.ndarray:
@@ -283,14 +333,19 @@ class VtkSeries:
     """
 
     def __init__(self, folder: str | Path, name: str = "results", *, resume: bool = False,
-                 compression: str | None = "zlib"):
+                 compression: str | None = "zlib", rank: int = 0, ranks: int = 1):
+        """rank, ranks: a series written in pieces by the ranks of an MPI run (:meth:`write_piece`);
+        rank 0 keeps the .pvd and deletes old files."""
         self.folder = Path(folder)
         self.name = name
         self.compression = compression
+        self.rank, self.ranks = rank, ranks
         self.pvd = self.folder / f"{name}.pvd"
-        self._pattern = re.compile(re.escape(name) + r"_(\d{5,})\.vtu")
+        self._pattern = re.compile(re.escape(name) + r"_(\d{5,})(?:_p\d+)?\.p?vtu")
         self.entries: list[tuple[int, float, str]] = []  # (step, time, file name), steps increasing
         self.folder.mkdir(parents=True, exist_ok=True)
+        if rank != 0:
+            return
         if resume and self.pvd.exists():
             self.entries = self._read_pvd()
         else:
@@ -313,8 +368,32 @@ class VtkSeries:
         self._write_pvd()
         return self.folder / file
 
+    def write_piece(self, step: int, time: float, piece: StepFields, written: Callable[[], None]) -> None:
+        """Every rank: write this rank's piece of the step (``<name>_<step>_p<rank>.vtu``); once
+        ``written()`` returns (a barrier: every rank's piece is there), rank 0 writes the step's
+        ``.pvtu`` that joins them and lists it in the .pvd."""
+        if not np.isfinite(time):
+            raise ValueError(f"time of step {step} is {time}")
+        stem = f"{self.name}_{step:05d}"
+        file = f"{stem}_p{self.rank}.vtu"
+        tmp = self.folder / f".{file}.tmp"
+        meshio.vtu.write(str(tmp), piece.to_meshio(), binary=True, compression=self.compression)
+        os.replace(tmp, self.folder / file)
+        written()
+        if self.rank != 0:
+            return
+        if self.entries and step <= self.entries[-1][0]:
+            raise ValueError(f"step {step} is not after the last written step {self.entries[-1][0]}")
+        tmp = self.folder / f".{stem}.pvtu.tmp"
+        tmp.write_text(pvtu_text(piece, [f"{stem}_p{r}.vtu" for r in range(self.ranks)]))
+        os.replace(tmp, self.folder / f"{stem}.pvtu")
+        self.entries.append((int(step), float(time), f"{stem}.pvtu"))
+        self._write_pvd()
+
     def truncate_after(self, step: int) -> None:
-        """After ``step``: delete their VTU files, listed or not; rewrite the .pvd."""
+        """After ``step``: delete their VTU files, listed or not; rewrite the .pvd (rank 0's work)."""
+        if self.rank != 0:
+            return
         self.entries = [e for e in self.entries if e[0] <= step]
         self._delete_files(lambda s: s > step)
         self._write_pvd()
@@ -341,7 +420,7 @@ class VtkSeries:
         for ds in ET.parse(self.pvd).getroot().iter("DataSet"):
             file = ds.get("file", "")
             match = self._pattern.fullmatch(file)
-            if match is None:
+            if match is None or "_p" in file[len(self.name):]:
                 raise ValueError(f"{self.pvd}: {file!r} is not a file of the series {self.name!r}")
             entries.append((int(match.group(1)), float(ds.get("timestep", "nan")), file))
         return sorted(entries)

@@ -134,6 +134,34 @@ def cmod_case(max_steps: int = 80) -> dict:
     return case
 
 
+def breakout_case() -> dict:
+    """The borehole breakout (examples/rock_tests/borehole): an in-situ stress at t = 0 ([initial]),
+    its traction on the hole released in 40 steps (in_situ), EP surfaces on every edge of the ring."""
+    folder = ROOT / "examples" / "rock_tests" / "borehole"
+    case = tomllib.loads((folder / "breakout.toml").read_text())
+    case["mesh"]["file"] = str(folder / case["mesh"]["file"])
+    return case
+
+
+def gravity_case() -> dict:
+    """A block of triangles with EP surfaces on every edge under gravity and an in-situ stress growing
+    with depth that balances it at t = 0 (the surfaces carry its tractions), then pushed on its top
+    with gravity doubled (a stage's gravity), below the surfaces' strength: the initial state's forces
+    and states, not yielding, are what differ on several ranks."""
+    rho, g, nu = 2500.0, 9.81, 0.25
+    law = {"GfI": 1e4, "GfII": 1e4, "chi_p": 1e6, "chi_r": 0.0, "c_p": 2e6, "c_r": 0.0, "phi_p": 0.5,
+           "phi_r": 0.0, "psi_p": 0.0, "alpha_chi": 2e3, "alpha_c": 2e3, "alpha_phi": 9e2, "alpha_psi": 9e2}
+    grad = [0.5 * rho * g, rho * g, nu / (1 - nu) * rho * g, 0.0]
+    supports = {"bottom": {"y": 0.0}, "left": {"x": 0.0}}
+    return {"mesh": {"kind": "block", "element": "tri3", "width": 1.0, "height": 2.0, "nx": 4, "ny": 8},
+            "bulk": {"E": 1e9, "nu": nu, "density": rho},
+            "cohesive": dict(law, form="ep", where="all", kn=1e11, kt=1e11),
+            "initial": {"gravity": [0.0, -g], "stress": [{"stress": [0.0, 0.0, 0.0, 0.0], "gradient": grad,
+                                                            "datum": 2.0}]},
+            "stages": [{"name": "hold", "steps": 2, "displacement": supports},
+                       {"name": "push", "steps": 3, "pressure": {"top": 2e5}, "gravity": [0.0, -2 * g]}]}
+
+
 CASES = {
     # EP surfaces of the paper's law, load control; the activation is located as an event
     "paper_ep": lambda: paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3),
@@ -145,6 +173,9 @@ CASES = {
     "bar_arc_length": lambda: bar_case("arc_length"),
     "bar_energy": lambda: bar_case("energy"),
     "cmod_opening": cmod_case,
+    # an initial state: in-situ stress, its release, gravity at t = 0 and in a stage
+    "breakout_initial": breakout_case,
+    "gravity_initial": gravity_case,
 }
 
 
@@ -162,7 +193,7 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> N
     np.testing.assert_array_equal(par["path"], ser["path"])
     assert np.abs(par["lam"] - ser["lam"]).max() <= 1e-9
     for key in ("u", "f_int"):
-        scale = np.abs(ser[key]).max(axis=1, keepdims=True)
+        scale = np.maximum(np.abs(ser[key]).max(axis=1, keepdims=True), 1e-300)  # a held step: u = 0
         assert (np.abs(par[key] - ser[key]) / scale).max() <= 1e-9, key
 
 
@@ -186,6 +217,10 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
         assert ser["path"].sum() >= 20 and ser["lam"][-1] < ser["lam"].max()  # past the peak under control
     elif name.startswith("cmod"):
         assert ser["path"].sum() == ser["path"].size  # every step under CMOD control
+    elif name == "breakout_initial":
+        assert ser["iterations"].max() >= 3  # surfaces yield in the run
+    elif name == "gravity_initial":
+        assert np.abs(ser["u"][1]).max() == 0.0 < np.abs(ser["u"][-1]).max()  # at rest at t = 0, then pushed
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
     assert_same_history(mpirun(n, "history", case, tmp_path), ser, any_iterations=name in CHATTY)
@@ -240,6 +275,15 @@ def test_global_matrix_ownership_and_ghosts(tmp_path, n):
     pairs = np.concatenate([g.points.minus for g in built.cohesives])
     np.testing.assert_array_equal(np.sort(par["pairs"]), np.sort(pairs))
     assert float(par["ghost_error"]) == 0.0 and par["n_ghosts"].min() > 0
+
+
+def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):
+    """The in-situ stress growing with depth without the gravity that balances it: the serial
+    message, raised by every rank (a check that fails on one rank only must not hang the others)."""
+    case = gravity_case()
+    del case["initial"]["gravity"]
+    par = mpirun(3, "history", case, tmp_path)
+    assert "not in equilibrium" in str(par["error"]) and "gravity" in str(par["error"])
 
 
 @pytest.mark.parametrize("section, message", [

@@ -154,12 +154,6 @@ def refuse_distributed(case: Case, path: str) -> None:
         if c.form is CohesiveForm.rp:
             raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "
                             "multipliers are not partitioned); form = 'ep' does")
-    if case.initial is not None:
-        raise CaseError(f"{path}: [initial]: an initial state (gravity, in-situ stress) {why}")
-
-    for k, st in enumerate(case.stages or []):
-        if st.gravity is not None or st.in_situ:
-            raise CaseError(f"{path}: [stages {k + 1}]: gravity and in_situ loads {why}")
 
 
 def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:

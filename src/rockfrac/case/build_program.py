@@ -173,9 +173,11 @@ def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
 
 
 def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
-                   factor: np.ndarray) -> np.ndarray:
+                   factor: np.ndarray, model: Model | None = None) -> np.ndarray:
     """Nodal forces of sigma0 . n on boundary sides (each side with the field of its cell's region),
-    times a factor per side."""
+    times a factor per side (on a distributed ``model``: the sides of every rank's cells)."""
+    if model is not None and model.distributed:
+        return model.reduce_sum(in_situ_forces(mesh, bulks, initial, sides, factor))
     f = np.zeros(mesh.dim * mesh.n_nodes)
     if sides.size == 0:
         return f
@@ -192,17 +194,20 @@ def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.nd
     return f
 
 
-def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress) -> None:
+def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model) -> None:
     """Put the in-situ stress into the groups: bulk regions their own field, cohesive sets the field
-    of the region on their minus side (the first bulk group whose cells hold their minus nodes)."""
+    of the region on their minus side (the last bulk group whose cells hold their minus nodes; on
+    several MPI ranks, over the cells and points of every rank)."""
     node_group = np.full(mesh.n_nodes, -1)
     for k, g in enumerate(bulks):
         field_ = initial.field(g.region)
         if field_ is not None:
             g.set_initial_stress(field_)
         node_group[g.cells.ravel()] = k
+    if model.distributed:
+        node_group = model.reduce_max(node_group)
     for c in cohesives:
-        groups = set(node_group[c.points.minus].tolist())
+        groups = set().union(*model.allgather(set(node_group[c.points.minus].tolist())))
         fields = {bulks[k].region: initial.field(bulks[k].region) for k in groups if k >= 0}
         specs = {initial.of_region[r][0].tobytes() + initial.of_region[r][1].tobytes()
                  for r, fl in fields.items() if fl is not None}
@@ -215,8 +220,9 @@ def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: Initia
 
 
 def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, g: np.ndarray, key: str,
-                   path: str) -> np.ndarray:
-    """Nodal forces of gravity g on every region (density x g), CaseError if a region has no density."""
+                   path: str, model: Model | None = None) -> np.ndarray:
+    """Nodal forces of gravity g on every region (density x g), CaseError if a region has no density
+    (on a distributed ``model``: the groups' cells of every rank)."""
     f = np.zeros(mesh.dim * mesh.n_nodes)
     if not np.any(g):
         return f
@@ -226,7 +232,7 @@ def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, 
             raise CaseError(f"{path}: {key}: region {b.region!r} has no density (give density [kg/m^3] in its "
                             "[bulk] or [[materials]] section)")
         body_force(b.cells, nodal_volumes(mesh.nodes, b.cells, b.ref, b.wdet), rho, g, f)
-    return f
+    return model.reduce_sum(f) if model is not None and model.distributed else f
 
 
 def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, model: Model, monitors: list[Monitor],
@@ -377,12 +383,12 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         if case.initial.stress:
             initial = InitialStress(case.initial.stress, [b.region for b in bulks], dim, path)
             try:
-                set_initial_stress(mesh, bulks, cohesives, initial)
+                set_initial_stress(mesh, bulks, cohesives, initial, model)
             except CaseError as err:
                 raise CaseError(f"{path}: {err}") from None
             model.update_constant_force()
-    f_gravity0 = gravity_forces(bulks, densities, mesh, g0, "[initial] gravity", path)
-    f_situ = in_situ_forces(mesh, bulks, initial, outer, in_situ_factor) if initial is not None else 0.0
+    f_gravity0 = gravity_forces(bulks, densities, mesh, g0, "[initial] gravity", path, model)
+    f_situ = in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model) if initial is not None else 0.0
     f0 = f_gravity0 + f_situ
     # the stages
     presc: dict[int, float] = {}
@@ -430,9 +436,9 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
-        f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path)
+        f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)
         if initial is not None:
-            f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor)
+            f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model)
         f_full = np.zeros(model.n_dofs)
         f_full[: f_end.shape[0]] = f_end
         dofs = np.array(sorted(presc), dtype=np.int64)
@@ -454,7 +460,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
                      + (" and gravity" if np.any(g0) else ""))
     if initial is not None:
         for g in model.groups:
-            why = g.initial_violation()
+            why = model.agree(g.initial_violation() or None)  # a point of any rank
             if why:
                 raise CaseError(f"{path}: [initial] stress: {why}")
     return Program(stages, u0, f0_full, stops, sections, aliases=case.loading is not None, notes=notes)
@@ -467,16 +473,21 @@ def _check_equilibrium(model: Model, first: Stage, u0: np.ndarray, f0: np.ndarra
         model.set_dirichlet(first.dirichlet)
     model.begin_step()
     asm = model.assemble(u0, u0, f0)
-    r = asm.residual[model.free]
+    r = model.owned(asm.residual)[model.free]  # each dof on one rank
     scale = max(float(np.abs(f0).max(initial=0.0)), 1e-30)
-    worst = float(np.abs(r).max(initial=0.0))
-    if worst > EQUILIBRIUM_TOL * scale:
+    mine = float(np.abs(r).max(initial=0.0))
+    worst = model.reduce_max(mine)
+    failure = None
+    if worst > EQUILIBRIUM_TOL * scale and mine == worst:
         i = int(model.free[np.argmax(np.abs(r))])
-        raise CaseError(f"{path}: [initial]: the state at t = 0 is not in equilibrium: an unbalanced force of "
-                        f"{worst:.4g} N/m at dof {i} (the largest initial load is {scale:.4g} N/m); an in-situ stress "
-                        "that varies with elevation needs the gravity that balances it (d sigma_yy / dy = rho g_y "
-                        "with [initial] gravity and the regions' density), and it must be continuous across "
-                        "regions where they touch")
+        failure = (f"{path}: [initial]: the state at t = 0 is not in equilibrium: an unbalanced force of "
+                   f"{worst:.4g} N/m at dof {i} (the largest initial load is {scale:.4g} N/m); an in-situ stress "
+                   "that varies with elevation needs the gravity that balances it (d sigma_yy / dy = rho g_y "
+                   "with [initial] gravity and the regions' density), and it must be continuous across "
+                   "regions where they touch")
+    failure = model.agree(failure)  # every rank raises the first rank's
+    if failure is not None:
+        raise CaseError(failure)
 
 
 def _nearest(nodes: np.ndarray, x: list[float], key: str, path: str) -> tuple[int, float]:

@@ -48,6 +48,7 @@ class Distribution:
     rank: int
     make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
     make_solver: Callable[[str], Any]  # [solver] linear -> the distributed linear solver
+    exchange: Any = None  # the ranks' allgather, before the model exists (rockfrac.elements.ede_paths.Exchange)
 
 
 @dataclass
@@ -148,8 +149,6 @@ def refuse_distributed(case: Case, path: str) -> None:
     if case.embedded is not None and case.embedded.tracking == "nonlocal":
         raise CaseError(f"{path}: [embedded] tracking = 'nonlocal' {why} (its stress average at a crack tip "
                         "reaches across the ranks); 'local' and 'none' do")
-    if case.embedded is not None and case.embedded.cracks:
-        raise CaseError(f"{path}: [[embedded.cracks]]: cracks cut before the first step {why}")
     for k, c in enumerate(case.cohesive_sets):
         if c.form is CohesiveForm.rp:
             raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "
@@ -169,7 +168,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         part = distribution.split(mesh)
         owned = part.cell_part == distribution.rank
     try:
-        bulks = make_bulk_groups(case, mesh, path, owned)
+        bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None)
     except CaseError:
         raise
     except ValueError as err:

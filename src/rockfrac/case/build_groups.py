@@ -13,6 +13,7 @@ from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
 from rockfrac.elements.ede_cracks import cut_along
+from rockfrac.elements.ede_paths import Exchange
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
@@ -106,9 +107,10 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
 
 
-def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None) -> list:
+def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
+                     exchange: Exchange | None = None) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
-    ``owned`` (a mask over the cells): only these cells (one MPI rank's)."""
+    ``owned`` (a mask over the cells): only these cells (one MPI rank's), ``exchange``: the ranks'."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     if emb is not None and mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen:
@@ -143,7 +145,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         groups.append(g)
 
     embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2]
-    share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded])
+    share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded], exchange)
     if emb is not None and emb.cracks:
         cut_initial_cracks(emb, embedded, path)
     return groups

@@ -54,14 +54,22 @@ def clip_to_cell(xe: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, f
 
 def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, float]:
     """Localize every EDE cell the polyline ``points`` (n, 2) [m] crosses (module doc); returns the
-    number of cells cut and the fraction of the polyline's length that lies in EDE cells."""
+    number of cells cut and the fraction of the polyline's length that lies in EDE cells.
+
+    On several MPI ranks (a collective call) the cuts are found on each group's cells of every rank
+    (their sizes gathered), so that every rank finds the serial ones; each rank cuts its own cells,
+    and the crack-path table is filled from every rank's."""
     pts = np.asarray(points, dtype=float)
     total = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     covered = 0.0
     cut = 0
-    for g in paths.groups:
-        xe = g.x[..., :2]
-        size = np.sqrt(g.wdet.sum(axis=1))
+    for g, conn in zip(paths.groups, paths.full_conn):
+        xe = paths.nodes[conn][..., :2]
+        size = np.zeros(conn.shape[0])
+        for index, own in paths.exchange.allgather((g.serial_index, np.sqrt(g.wdet.sum(axis=1)))):
+            size[index] = own
+        local = np.full(conn.shape[0], -1)
+        local[g.serial_index] = np.arange(g.serial_index.size)
         chords: dict[int, list[np.ndarray]] = {}
         for a, b in zip(pts[:-1], pts[1:]):
             length = float(np.linalg.norm(b - a))
@@ -88,8 +96,10 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
             side = (xe[e] - start) @ normal
             if not (side.min() < -LENGTH_TOL * size[e] and side.max() > LENGTH_TOL * size[e]):
                 continue  # along an edge of the cell, or through a corner only: not a cut of this cell
-            g.localize_cell(e, normal, c_p=c_p, point=start)
+            if local[e] >= 0:  # this rank's cell
+                g.localize_cell(int(local[e]), normal, c_p=c_p, point=start)
             covered += sum(float(np.linalg.norm(piece[1] - piece[0])) for piece in pieces)
             cut += 1
     paths.cracks += 1
+    paths.sync()
     return cut, covered / total

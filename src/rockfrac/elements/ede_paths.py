@@ -74,6 +74,7 @@ class CrackPaths:
         full = full if full is not None else [(g.cell_ids, g.cells) for g in groups]
         if len(full) != len(groups):
             raise ValueError(f"{len(full)} full cell lists for {len(groups)} groups")
+        self.full_conn = [np.asarray(c) for _, c in full]  # each group's cells of every rank, serial order
         n_cells = int(max((i.max(initial=-1) for i, _ in full), default=-1)) + 1
         self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each own cell
         self.group_of = np.full(n_cells, -1, dtype=np.int64)  # the group of every EDE cell, any rank's
@@ -212,11 +213,11 @@ class CrackPaths:
         return n if n @ ref >= 0.0 else -n
 
 
-def share_crack_paths(groups: list, nodes: np.ndarray, full: list[tuple[np.ndarray, np.ndarray]] | None = None
-                      ) -> None:
+def share_crack_paths(groups: list, nodes: np.ndarray, full: list[tuple[np.ndarray, np.ndarray]] | None = None,
+                      exchange: Exchange | None = None) -> None:
     """Make the EDE groups of a model share one crack-path registry (crack tracking across regions);
-    ``full``: each group's cells on every MPI rank (see :class:`CrackPaths`)."""
+    ``full``: each group's cells on every MPI rank, ``exchange``: the ranks' (see :class:`CrackPaths`)."""
     if groups:
-        paths = CrackPaths(nodes, groups, full)
+        paths = CrackPaths(nodes, groups, full, exchange)
         for g in groups:
             g._paths = paths

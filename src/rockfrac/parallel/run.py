@@ -43,7 +43,7 @@ def distribution(comm) -> Distribution:
         return DistributedModel(mesh.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,
                                 partition=part, rank=rank, nodes=mesh.nodes)
 
-    return Distribution(split, rank, make_model, distributed_solver)
+    return Distribution(split, rank, make_model, distributed_solver, comm)
 
 
 def build_distributed(case: Case | str | Path, comm, path_label: str | None = None) -> Built:

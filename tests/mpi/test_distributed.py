@@ -98,13 +98,14 @@ def joint_case() -> dict:
 def band_case(tracking: str = "local", max_steps: int = 66) -> dict:
     """An embedded shear band (tests/test_crack_tracking.py) on 12 x 24 quads under path control: the
     cells localize one after the other from the weak seed, each continuing the crack from the tip of
-    its neighbour ("local"), or each on its own ("none"); max_steps before the run's own end."""
+    its neighbour ("local"; "nonlocal": in the direction of the stress averaged around the tip over
+    every rank's cells), or each on its own ("none"); max_steps before the run's own end."""
     from test_crack_tracking import H, W
     from test_crack_tracking import band_case as tracked
 
     mesh = {"kind": "block", "element": "quad4", "width": W, "height": H, "nx": 12, "ny": 24,
             "inclusion": [0.0, 0.0067, 0.0034, 0.0167]}
-    case = tracked(mesh, {"tracking": tracking})
+    case = tracked(mesh, {"tracking": tracking, **({"tracking_length": 0.01} if tracking == "nonlocal" else {})})
     case["loading"]["max_steps"] = max_steps
     return case
 
@@ -178,6 +179,7 @@ CASES = {
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
     "band_none": lambda: band_case("none", 43),
+    "band_nonlocal": lambda: band_case("nonlocal"),
     "joint_2d_cracks": joint_2d_case,
     # the path controls whose measures are dot products over every rank's dofs
     "bar_arc_length": lambda: bar_case("arc_length"),
@@ -303,7 +305,6 @@ def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):
 
 @pytest.mark.parametrize("section, message", [
     ({"cohesive": {"form": "rp", "kn": None, "kt": None}}, "form = 'rp'"),
-    ({"embedded": {"tracking": "nonlocal", "tracking_length": 0.01}}, "tracking = 'nonlocal'"),
 ])
 def test_what_does_not_run_distributed_is_refused_by_name(tmp_path, section, message):
     if "embedded" in section:

@@ -146,9 +146,6 @@ def resolve(case: Case, path: str = "<case>") -> Case:
 def refuse_distributed(case: Case, path: str) -> None:
     """CaseError for what does not run on several MPI ranks yet, named (rockfrac.parallel)."""
     why = "does not run on several MPI ranks yet; run it on one process"
-    if case.embedded is not None and case.embedded.tracking == "nonlocal":
-        raise CaseError(f"{path}: [embedded] tracking = 'nonlocal' {why} (its stress average at a crack tip "
-                        "reaches across the ranks); 'local' and 'none' do")
     for k, c in enumerate(case.cohesive_sets):
         if c.form is CohesiveForm.rp:
             raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "

@@ -78,6 +78,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cells = self._candidates(state)
         tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
         cells = np.union1d(cells, tips).astype(np.int64)
+        near = self._tip_stresses() if self.tracking == "nonlocal" else {}
         e_of, qi, screened = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
         if cells.size:
             qmask = state[cells, :, S_MODE] == MODE_CONE
@@ -86,10 +87,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             if self.tracking == "nonlocal" and tips.size:  # ...or the nonlocal stress at its tip point,
                 extra = sigma[:, :1].copy()  # as one more point of the cell
                 for e in tips:
-                    tip = self._tip(int(e))
-                    near = self.paths.nonlocal_stress(tip[0], self._nonlocal_length()) if tip is not None else None
-                    if near is not None and np.all(np.isfinite(near)):
-                        extra[e, 0] = near
+                    stress = near.get(int(self.cell_ids[e]))
+                    if stress is not None and np.all(np.isfinite(stress)):
+                        extra[e, 0] = stress
                 sigma = np.concatenate([sigma, extra], axis=1)
                 qmask = np.concatenate([qmask, at_tip[:, None]], axis=1)
             ce, qi = np.nonzero(qmask)
@@ -133,6 +133,18 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         if where:
             best = min(best, min(v[0] for v in where.values()))
         return best, where
+
+    def _tip_stresses(self) -> dict[int, np.ndarray]:
+        """The nonlocal stress at the tip point of every crack-tip cell of the group (any rank's, by
+        global id; a collective call, one per tip in the serial order)."""
+        paths = self.paths
+        every = sorted(paths.tip_cells_global(paths.groups.index(self)), key=lambda c: paths.serial[c])
+        out = {}
+        for gcell in every:
+            tip = paths.tip(gcell)
+            if tip is not None:
+                out[gcell] = paths.nonlocal_stress(tip[0], self._nonlocal_length())
+        return out
 
     def _global_lowest(self, screened: np.ndarray, e_of: np.ndarray, qi: np.ndarray) -> int | None:
         """Index in e_of of the group's lowest screened point over every MPI rank, if this rank holds
@@ -194,9 +206,12 @@ class EmbeddedDruckerPrager(EmbeddedCells):
                     continue  # beside a crack but not at its tip, or no new crack allowed: wait
                 if tip is None:
                     paths.cracks += 1
+                normal = None  # "nonlocal": the tip's nonlocal stress decides (a collective call)
+                if tip is not None and self.tracking == "nonlocal":
+                    normal = paths.nonlocal_normal(gcell, tip[0], tip[1], self._nonlocal_length())
                 group, local = paths.owner[gcell]
                 if group == k:
-                    self._open(int(local), ratio, loc, tip)
+                    self._open(int(local), ratio, loc, tip, normal)
                 paths.announce(gcell)
                 pending.remove(cand)
                 progress = True
@@ -239,11 +254,13 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         other = [j for j in ranked if j != k]
         return loc.normals[k], (float(angles[other[0]]) if other else math.nan)
 
-    def _open(self, e: int, ratio: float, loc, tip=None) -> None:
+    def _open(self, e: int, ratio: float, loc, tip=None, normal: np.ndarray | None = None) -> None:
+        """Cut cell e: through the tip (a crack continued) or its centroid, with the conjugate normal
+        closest to the crack's, or ``normal`` (tracking "nonlocal", from the stress at the tip)."""
         point, reference = tip if tip is not None else (None, None)
         n, other = self._choose(loc, reference)
-        if tip is not None and self.tracking == "nonlocal":
-            n = self.paths.nonlocal_normal(self._global(e), tip[0], tip[1], self._nonlocal_length())
+        if normal is not None:
+            n = normal
         c_p = self.localize_cell(e, n, point=point)
         s = self.e_state[e]
         band = float(math.atan2(s[K.E_T + 1], s[K.E_T]))

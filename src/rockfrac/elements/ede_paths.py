@@ -181,7 +181,8 @@ class CrackPaths:
     def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
         """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
         stresses with the Gaussian weight exp(-r^2 / (2 length^2)) of their centroids' distance r to
-        the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close."""
+        the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close. On
+        several MPI ranks, a collective call: the sums over every rank's cells."""
         x = np.asarray(point, dtype=float)[:2]
         total, weight = np.zeros(6), 0.0
         for g, centre in zip(self.groups, self.centres):
@@ -190,6 +191,10 @@ class CrackPaths:
             w = np.exp(-r2[near] / (2.0 * length**2))
             total += np.einsum("e,eq,eqi->i", w, g.wdet[near], g.sigma[near])
             weight += float(w @ g.wdet[near].sum(axis=1))
+        parts = self.exchange.allgather((total, weight))  # every rank's cells (one process: its own)
+        total, weight = parts[0]
+        for t, w_r in parts[1:]:
+            total, weight = total + t, weight + w_r
         return total / weight if weight > 0.0 else np.full(6, np.nan)
 
     def nonlocal_normal(self, gcell: int, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
@@ -198,7 +203,7 @@ class CrackPaths:
         (:meth:`nonlocal_stress`), the one closest to ``reference`` (the crack's last normal), signed
         like it. The direction comes from the stress the crack grows into, not from the singular
         field of the one cell at its tip. The tip cell's law gives the tangent."""
-        g, _ = self._cell(gcell)
+        g = self.groups[self.group_of[gcell]]  # its law (the cell may be another rank's)
         ref = np.asarray(reference, dtype=float)[:2]
         sigma = self.nonlocal_stress(point, length)[None, :]
         if not np.all(np.isfinite(sigma)):

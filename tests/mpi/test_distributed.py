@@ -40,6 +40,9 @@ from conftest import paper_case  # noqa: E402
 BRAZILIAN = ROOT / "examples" / "rock_tests" / "brazilian"
 TRIAXIAL = ROOT / "examples" / "rock_tests" / "triaxial"
 TIMEOUT = 600
+# Open MPI as root (this machine's CI), 3 ranks on 2 cores
+MPI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
 def mpirun(n: int, task: str, case: dict, tmp_path: Path, u: np.ndarray | None = None) -> dict:
@@ -50,15 +53,32 @@ def mpirun(n: int, task: str, case: dict, tmp_path: Path, u: np.ndarray | None =
     case_file = tmp_path / f"{task}_{n}.json"
     case_file.write_text(json.dumps(data))
     out = tmp_path / f"{task}_{n}.npz"
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
     cmd = [mpiexec, "-n", str(n), sys.executable, str(HERE / "mpi_driver.py"), task, str(case_file), str(out)]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    done = subprocess.run(cmd, env=MPI_ENV, capture_output=True, text=True, timeout=TIMEOUT)
     assert done.returncode == 0, f"{' '.join(cmd)} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     with np.load(out) as f:
         result = {k: f[k] for k in f.files}
     assert int(result["ranks"]) == n
     return result
+
+
+def case_file(case: dict, path: Path, serial: Path | None = None) -> Path:
+    """The case written to ``path`` (TOML), and run on one process into ``serial`` if given."""
+    import tomli_w
+
+    from rockfrac.runner import run_case
+
+    path.write_text(tomli_w.dumps(case))
+    if serial is not None:
+        run_case(parse_case(case, str(path)), serial)
+    return path
+
+
+def rockfrac_on_ranks(n: int, case: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    """`mpiexec -n n rockfrac run CASE --out OUT --quiet [extra]` (3 ranks oversubscribed here)."""
+    cmd = [shutil.which("mpiexec") or "mpiexec", "-n", str(n), str(Path(sys.executable).parent / "rockfrac"), "run",
+           str(case), "--out", str(out), "--quiet", *extra]
+    return subprocess.run(cmd, env=MPI_ENV, capture_output=True, text=True, timeout=TIMEOUT)
 
 
 def serial_history(case: dict) -> dict:
@@ -414,21 +434,10 @@ def assert_pieces_are_the_serial_grid(pvtu: Path, vtu: Path, n: int) -> None:
 def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     """`mpiexec -n N rockfrac run` of the disc split under path control, with its stop rule and
     monitor: history.csv, points.csv (in the serial order) and the crack map as a serial run's."""
-    from rockfrac.runner import run_case
-
     case = splitting_case(2000)
     case["output"] = {"picture": True, "vtk": True, "vtk_every": 48}
-    case_file = tmp_path / "split.toml"
-    import tomli_w
-
-    case_file.write_text(tomli_w.dumps(case))
-    run_case(parse_case(case, str(case_file)), tmp_path / "serial")
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    rockfrac = str(Path(sys.executable).parent / "rockfrac")
-    cmd = [shutil.which("mpiexec") or "mpiexec", "-n", str(n), rockfrac, "run", str(case_file), "--out",
-           str(tmp_path / "mpi"), "--quiet"]
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    split = case_file(case, tmp_path / "split.toml", tmp_path / "serial")
+    done = rockfrac_on_ranks(n, split, tmp_path / "mpi")
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
     assert done.stderr.count("rockfrac run") == 1  # rank 0 reports, the others are quiet
     for name in ("history.csv", "points.csv"):
@@ -445,7 +454,7 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     log = (tmp_path / "mpi" / "run.log").read_text()
     assert f"MPI: {n} ranks" in log and "linear solver: petsc" in log
     # a folder holding a run: rank 0's refusal ends every rank, exit code 2, said once
-    again = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+    again = rockfrac_on_ranks(n, split, tmp_path / "mpi")
     assert again.returncode == 2 and again.stderr.count("holds the outputs of another run") == 1, again.stderr
 
 
@@ -455,22 +464,14 @@ def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     On 3 ranks the resume is refused, once, by name. With GMRES + GAMG: MUMPS's parallel LU is not
     reproducible to the last bit from one run to the next (its contribution blocks are summed in the
     order they arrive), so neither is a resume through it."""
-    import tomli_w
-
     case = splitting_case(2000)
     case["output"] = {"picture": False, "checkpoint_every": 30}
     case["solver"] = {"linear": "petsc-gamg"}
-    case_file = tmp_path / "split.toml"
-    case_file.write_text(tomli_w.dumps(case))
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    rockfrac = str(Path(sys.executable).parent / "rockfrac")
+    split = case_file(case, tmp_path / "split.toml")
     out = tmp_path / "run"
 
     def launch(n: int, *extra: str) -> subprocess.CompletedProcess:
-        cmd = [shutil.which("mpiexec") or "mpiexec", "-n", str(n), rockfrac, "run", str(case_file), "--out", str(out),
-               "--quiet", *extra]
-        return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+        return rockfrac_on_ranks(n, split, out, *extra)
 
     first = launch(2)
     assert first.returncode == 0, first.stderr[-2000:]
@@ -490,23 +491,13 @@ def test_an_embedded_band_on_ranks_writes_the_serial_outputs_and_resumes(tmp_pat
     checkpoint at step 60, the crack-path table is rebuilt from both ranks and the run ends as the
     uninterrupted one (to 1e-9: MUMPS's parallel LU is not bit-reproducible)."""
     import meshio
-    import tomli_w
-
-    from rockfrac.runner import run_case
 
     case = band_case()
     case["output"] = {"points": True, "picture": True, "vtk": True, "vtk_every": 33, "checkpoint_every": 30}
-    case_file = tmp_path / "band.toml"
-    case_file.write_text(tomli_w.dumps(case))
-    run_case(parse_case(case, str(case_file)), tmp_path / "serial")
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    rockfrac = str(Path(sys.executable).parent / "rockfrac")
+    band = case_file(case, tmp_path / "band.toml", tmp_path / "serial")
 
     def launch(out: Path, *extra: str) -> None:
-        cmd = [shutil.which("mpiexec") or "mpiexec", "-n", "2", rockfrac, "run", str(case_file), "--out", str(out),
-               "--quiet", *extra]
-        done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=TIMEOUT)
+        done = rockfrac_on_ranks(2, band, out, *extra)
         assert done.returncode == 1, done.stdout[-2000:] + done.stderr[-2000:]  # 1: ended at max_steps
 
     launch(tmp_path / "mpi")

@@ -250,13 +250,14 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     peaks = {k.removeprefix("stop_peak."): float(v) for k, v in counters.items() if k.startswith("stop_peak.")}
     run = {"iters": int(counters.get("iters", 0)), "last": keep or 0}
     events: list[str] = []  # the groups' event lines of every rank, in the order they came
-    seen: dict[tuple[int, int], int] = {}
+    sent = [0] * len(model.groups)  # how many of each group's lines this rank has passed on
 
-    def gather_events() -> None:  # a collective call: each group's new lines of each rank, appended
+    def gather_events() -> None:  # a collective call: each group's new lines of every rank, appended
         for k, g in enumerate(model.groups):
-            for r, lines in enumerate(model.allgather(g.event_log())):
-                events.extend(lines[seen.get((k, r), 0):])
-                seen[k, r] = len(lines)
+            lines = g.event_log()
+            for new in model.allgather(lines[sent[k]:]):
+                events.extend(new)
+            sent[k] = len(lines)
 
     gather_events()
     log: RunLog | Quiet = RunLog(out / "run.log", keep, lambda: events) if lead else Quiet()

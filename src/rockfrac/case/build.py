@@ -180,9 +180,6 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:
         model = distribution.make_model(mesh, bulks + cohesives, part)
-    for g in bulks:  # the crack paths' decisions are the same on every rank
-        if isinstance(g, EmbeddedDruckerPrager):
-            g.paths.exchange = model
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
     if program.stages and program.stages[0].dirichlet is not None:

@@ -146,6 +146,9 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
 
     embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2]
     share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded], exchange)
+    for g in groups:  # a plane-strain hex8 group: a registry of its own (its onsets' search over the ranks)
+        if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2:
+            share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
     if emb is not None and emb.cracks:
         cut_initial_cracks(emb, embedded, path)
     return groups

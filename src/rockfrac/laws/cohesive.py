@@ -54,6 +54,7 @@ from rockfrac.laws.cohesive_params import (
     S_TN,
     S_TT,
 )
+from rockfrac.laws.cohesive_rescue import rescue_return
 from rockfrac.laws.cohesive_solve import (
     CONVERGED,
     ST_ELASTIC,
@@ -116,7 +117,7 @@ def return_map(du, s_old, comp, p, s_new, D):
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
     """
     return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
-                       comp[0], comp[1], s_old, p, s_new, D, workspace())
+                       comp[0], comp[1], s_old, p, s_new, D, workspace(), True)
 
 
 @nb.njit(cache=True)
@@ -127,16 +128,20 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
     traction with START_GIVEN (committed plastic) or START_NONE (see the module doc).
     """
     return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], t_s[0], t_s[1], start, comp[0], comp[1],
-                       s_old, p, s_new, D, workspace())
+                       s_old, p, s_new, D, workspace(), False)
 
 
 @nb.njit(cache=True)
-def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
+def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk, rescue):
     """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
 
     (du_t, du_n) [m]: local jump increment; (t_old_t, t_old_n) [Pa]: the traction of the trial
     T^tr = T_old + K^e du, K^e = diag(1/ct, 1/cn); (t_s_t, t_s_n), start: the work rule's
     start-of-flow traction. s_old supplies the ISVs and plastic jumps (its traction is not read).
+    rescue: where the Newton from the frozen guess fails, solve the same return from a bracketed guess
+    or by continuation (:mod:`rockfrac.laws.cohesive_rescue`); the EP form's, whose du is a jump
+    increment. The RP form's augmented trials of a diverging global iterate fail instead, which cuts
+    the step.
     Inlined: the elastic test and update run in the caller's loop, and only a yielding point makes
     a call that takes wk (passing the workspace tuple costs its 14 arrays' reference counts, ~0.1 us,
     measured).
@@ -146,11 +151,12 @@ def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old
     if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
         return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
     return _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D,
-                         wk)
+                         wk, rescue)
 
 
 @nb.njit(cache=True)
-def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
+def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk,
+                  rescue):
     """The return of :func:`return_step` from the trial (tt, tn) [Pa], which is outside the surface."""
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
     x, ws, dws, du, comp, t_old, t_s = wk[7], wk[8], wk[9], wk[10], wk[11], wk[12], wk[13]
@@ -164,6 +170,8 @@ def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct,
     if not _frozen_return(x, du, t_old, comp, p, sgn):
         x[0], x[1], x[2], x[3], x[4] = tt, tn, en_old, es_old, 0.0
     st = _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk)
+    if rescue and (st < 0 or x[4] < 0.0):  # the same return from a bracketed guess or by continuation
+        st = rescue_return(x, du, t_old, t_s, start, en_old, es_old, comp, p, ws, dws, wk)
     if st < 0:
         return st
     if x[4] < 0.0:
@@ -185,7 +193,7 @@ def ep_update(du, s_old, p, s_new, D):
 def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
     """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`."""
     return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
-                       p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
+                       p[P_CT], p[P_CN], s_old, p, s_new, D, wk, True)
 
 
 CHUNK = 256  # points per prange item: one workspace each, small enough to balance plastic clusters

@@ -122,7 +122,7 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
                       >= -_law.elastic_tolerance(p))
         start = START_GIVEN if on_surface else START_NONE
         status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
-                                s_old[i], p, s_new[i], d_new[i], wk)
+                                s_old[i], p, s_new[i], d_new[i], wk, False)
     switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
     fi = fe[i]
     ki = ke[i]
@@ -175,7 +175,7 @@ def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
         return elastic_update(tr_t, tr_n, ct, cn, s_old, s_new, D)  # only a yielding point allocates
     t_t, t_n = s_old[S_TT], s_old[S_TN]
     return return_step((tr_t - t_t) * ct, (tr_n - t_n) * cn, t_t, t_n, t_t, t_n, np.int64(START_CROSSING), ct, cn,
-                       s_old, p, s_new, D, workspace())
+                       s_old, p, s_new, D, workspace(), True)
 
 
 class MohrCoulombSurface(TractionLaw):

@@ -33,7 +33,7 @@ def _residual(s_new, du, p, eps, t_old=(0.0, 0.0)):
     """The scaled residual norm of the local problem (backward Euler) at the returned state."""
     x = np.array([s_new[S_TT], s_new[S_TN], s_new[S_EPSN], s_new[S_EPSS], s_new[S_DGAMMA]])
     comp = p[:2].copy()
-    ws, dws = np.zeros(3), np.zeros((2, 2))
+    ws = np.zeros(3)  # backward Euler: no start-of-flow terms
     r, jac = np.zeros(5), np.zeros((5, 5))
     du = np.asarray(du, dtype=float)
     system._system(x, du, np.asarray(t_old, dtype=float), eps, eps, comp, system._jump_weight(comp, du, p), p,
@@ -68,7 +68,7 @@ def test_bracketed_frozen_return_is_on_the_frozen_surface_and_agrees_with_newton
     comp, t_old = p[:2].copy(), np.zeros(2)
     x = np.array([du[0] * k, du[1] * k, eps, eps, 0.0])
     assert rescue.bracketed_frozen_return(x, du, t_old, comp, p)
-    chi, c, tphi, tpsi = law.strengths(eps, eps, p)
+    chi, c, _, tpsi = law.strengths(eps, eps, p)
     assert x[4] > 0.0
     assert x[1] == pytest.approx(du[1] * k - k * x[4] * tpsi, rel=1e-12, abs=1e-9)
     a_g = c - chi * tpsi
@@ -95,7 +95,7 @@ def test_rescued_return_converges_to_the_backward_euler_solution(case):
     kw, k, eps, mag, deg = case
     p = CohesiveLaw(**kw, kn=k, kt=k).as_array()
     du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
-    st, s_new, d = _ep(du, p, eps)
+    st, s_new, _ = _ep(du, p, eps)
     assert st == 1
     assert _residual(s_new, du, p, eps) < 1e-9
     assert s_new[S_DGAMMA] > 0.0
@@ -107,7 +107,7 @@ def test_rescued_return_tangent_against_central_differences(case):
     kw, k, eps, mag, deg = case
     p = CohesiveLaw(**kw, kn=k, kt=k).as_array()
     du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
-    st, s_new, d = _ep(du, p, eps)
+    st, _, d = _ep(du, p, eps)
     assert st == 1
     h = 1e-6 * np.linalg.norm(du)
     fd = np.zeros((2, 2))

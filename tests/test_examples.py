@@ -76,12 +76,13 @@ def test_every_example_case_runs_small(tmp_path, path):
 def test_every_mesh_script_writes_a_mesh(tmp_path, script):
     out = tmp_path / "m.msh"
     size = {"brazilian": ["--size", "0.01"], "borehole": ["--size", "0.02"], "bending": ["--size", "0.01"],
-            "triaxial": ["--size", "0.02"], "aggregate_3d": ["--cells", "3", "3", "6", "--grains", "4"]}
+            "triaxial": ["--size", "0.02"], "aggregate_3d": ["--cells", "3", "3", "6", "--grains", "4"],
+            "embedded_3d": ["--divisions", "4", "2", "8"]}
     subprocess.run([sys.executable, str(script), *size[script.parent.name], "--out", str(out)], check=True,
                    capture_output=True, timeout=300)
     mesh = read_mesh(out, dim=None)
-    three_d = script.parent.name in ("triaxial", "aggregate_3d")
-    assert mesh.cells.shape[0] > 10 and mesh.cell_type == ("tet4" if three_d else "quad4")
+    kind = {"triaxial": "tet4", "aggregate_3d": "tet4", "embedded_3d": "hex8"}.get(script.parent.name, "quad4")
+    assert mesh.cells.shape[0] > 10 and mesh.cell_type == kind
 
 
 def readme_snippets() -> list[str]:

@@ -200,7 +200,8 @@ BILINEAR = {"form": "ep", "kn": 1e13, "kt": 1e13, "law": "bilinear", "sigma_c": 
     ({"cohesive": {"where": "curves", "curves": ["side"], **BILINEAR}},
      r"\[cohesive\] where = 'curves' is for 2D meshes; this one is 3D"),
     ({"embedded": {"c_p": 1e6, "c_r": 0.0, "phi_p": 0.5, "phi_r": 0.0, "psi_p": 0.1, "alpha_c": 500.0,
-                   "alpha_phi": 500.0, "alpha_psi": 500.0}}, r"\[embedded\]: the mesh is a general 3D body"),
+                   "alpha_phi": 500.0, "alpha_psi": 500.0}},
+     r"\[embedded\]: embedded cracks in a general 3D body need hex8 cells; these are tet4"),
 ])
 def test_what_3d_meshes_do_not_carry_yet_is_refused_by_name(tmp_path, section, key):
     from rockfrac.api import make_case

@@ -268,8 +268,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             observers.append(hist)
         if lead and case.output.points and (built.cohesives or built.embeddeds):
             # 3D surfaces have (t1, t2, n) components; a plane-strain hex8 specimen's cracks are 2D
-            columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) else POINT_COLUMNS
+            general = [g for g in built.embeddeds if g.dim == 3 and not g.plane_strain]
+            columns = POINT_COLUMNS_3D if any(g.dim == 3 for g in built.cohesives) or general else POINT_COLUMNS
             extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
+            extra += ["gamma", "zeta", "c_p"] if general else []
             observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
         if case.output.vtk:  # an MPI run: one piece per rank and rank 0's .pvtu joining them
             from rockfrac.output.fields import step_output, step_piece
@@ -391,7 +393,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 cracks = save_crack_map(out / "crack_map.png", fields, mag, view=view,
                                         title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed "
                                               f"x{mag:g}")
-                what = "crack segments" if view == "plane" else "yielded interface cells"
+                what = "crack segments" if view == "plane" else "yielded interface cells and surface triangles"
                 log(f"crack_map.png: step {result.steps}, {cracks.opening.size} {what}, deformed x{mag:g}")
     finally:
         log.close()

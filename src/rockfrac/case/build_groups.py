@@ -12,7 +12,7 @@ from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
-from rockfrac.elements.ede_cracks import cut_along
+from rockfrac.elements.ede_cracks import cut_along, cut_by_plane
 from rockfrac.elements.ede_paths import Exchange
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
@@ -113,10 +113,15 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
     ``owned`` (a mask over the cells): only these cells (one MPI rank's), ``exchange``: the ranks'."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
-    if emb is not None and mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen:
-        raise CaseError(f"{path}: [embedded]: the mesh is a general 3D body ({mesh.cell_type} cells); embedded "
-                        "cracks are available in 2D meshes and in the plane-strain hex8 specimen ([mesh] kind = "
-                        "'specimen', element = 'hex8'): remove [embedded] or use one of those")
+    general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
+    if emb is not None and general and mesh.cell_type != "hex8":
+        raise CaseError(f"{path}: [embedded]: embedded cracks in a general 3D body need hex8 cells; these are "
+                        f"{mesh.cell_type} (in tetrahedra the sliding of a cut plane does not converge yet): mesh "
+                        "the drucker_prager regions with hexahedra, or remove [embedded]")
+    if emb is not None and general and emb.tracking != "none":
+        raise CaseError(f"{path}: [embedded] tracking = '{emb.tracking}': crack paths are followed in 2D meshes; "
+                        f"in a general 3D body ({mesh.cell_type} cells) every cell opens on its own plane through "
+                        "its centroid: use tracking = 'none'")
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
@@ -132,7 +137,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
             ede = EmbeddedDruckerPrager(
                 mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
-                plane_strain=True, tracking=emb.tracking, max_cracks=emb.max_cracks,
+                plane_strain=not general, tracking=emb.tracking, max_cracks=emb.max_cracks,
                 tracking_length=emb.tracking_length, region=region, cell_ids=cells)
             if owned is not None:
                 ede.serial_index = np.flatnonzero(owned[every])  # its cells' places among the whole group's
@@ -150,8 +155,27 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2:
             share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
     if emb is not None and emb.cracks:
-        cut_initial_cracks(emb, embedded, path)
+        if general:
+            cut_initial_planes(emb, [g for g in groups if isinstance(g, EmbeddedDruckerPrager)], path)
+        else:
+            cut_initial_cracks(emb, embedded, path)
     return groups
+
+
+def cut_initial_planes(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager], path: str) -> None:
+    """A general 3D body: cut the cells each plane of [[embedded.cracks]] crosses before the first step."""
+    if not groups:
+        raise CaseError(f"{path}: [embedded] cracks: no cells may localize (cracks need cells of a "
+                        "drucker_prager region of [embedded] regions)")
+    for k, crack in enumerate(emb.cracks):
+        if crack.point is None or crack.normal is None:
+            raise CaseError(f"{path}: [embedded] cracks[{k}]: the mesh is a general 3D body; a crack is a plane: "
+                            "give point = [x, y, z] and normal = [nx, ny, nz]")
+        cut = cut_by_plane(groups, np.array(crack.point, dtype=float), np.array(crack.normal, dtype=float),
+                           crack.c_p)
+        if cut == 0:
+            raise CaseError(f"{path}: [embedded] cracks[{k}]: the plane crosses no cell that may localize (it "
+                            "misses the mesh or the drucker_prager regions of [embedded])")
 
 
 def cut_initial_cracks(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager], path: str) -> None:
@@ -160,6 +184,9 @@ def cut_initial_cracks(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager]
         raise CaseError(f"{path}: [embedded] cracks: no 2D cells may localize (cracks need quad4 or tri3 "
                         "cells of a drucker_prager region of [embedded] regions)")
     for k, crack in enumerate(emb.cracks):
+        if crack.points is None:
+            raise CaseError(f"{path}: [embedded] cracks[{k}]: a plane (point, normal) cuts a 3D body; this mesh is "
+                            "2D: give points = [[x, y], ...]")
         _, covered = cut_along(groups[0].paths, np.array(crack.points, dtype=float), crack.c_p)
         if covered < 1.0 - 1e-6:
             raise CaseError(f"{path}: [embedded] cracks[{k}]: {100 * (1 - covered):.3g} % of its length is not "

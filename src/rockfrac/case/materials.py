@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import math
 from enum import Enum
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from rockfrac.values import Angle, Coefficient, Coordinate, Count, Hardening, Length, Modulus, Rate, Strength
+from rockfrac.values import (
+    Angle,
+    Coefficient,
+    Coordinate,
+    Count,
+    Hardening,
+    Length,
+    Modulus,
+    Rate,
+    Strength,
+)
 from rockfrac.values import Section as _Section
 
 
@@ -67,19 +78,31 @@ class BandChoice(str, Enum):
 
 
 class EmbeddedCrackSection(_Section):
-    """A crack present from the start (a joint or fault) in the embedded-discontinuity continuum (2D):
-    every cell the polyline crosses is cut before the first step, its surface the polyline's chord."""
+    """A crack present from the start (a joint or fault) in the embedded-discontinuity continuum: in 2D
+    a polyline, every cell it crosses cut along its chord; in a general 3D body a plane, every cell it
+    crosses cut by it."""
 
-    points: list[list[Coordinate]] = Field(min_length=2, max_length=10_000,
-                                           description="the polyline's points [[x, y], ...] [m]")
+    points: list[list[Coordinate]] | None = Field(None, min_length=2, max_length=10_000,
+                                                  description="2D: the polyline's points [[x, y], ...] [m]")
+    point: list[Coordinate] | None = Field(None, min_length=3, max_length=3,
+                                           description="3D: a point [x, y, z] of the plane [m]")
+    normal: list[Annotated[float, Field(ge=-1e3, le=1e3)]] | None = Field(
+        None, min_length=3, max_length=3, description="3D: the plane's normal [nx, ny, nz] (any length but 0)")
     c_p: Strength = Field(description="peak cohesion of its surfaces [Pa] (they soften by the [embedded] law)")
 
     @model_validator(mode="after")
     def _polyline(self) -> EmbeddedCrackSection:
-        if any(len(p) != 2 for p in self.points):
-            raise ValueError("points must be [x, y] pairs")
-        if any(p == q for p, q in zip(self.points[:-1], self.points[1:])):
-            raise ValueError("points: two consecutive points are the same")
+        plane = self.point is not None or self.normal is not None
+        if (self.points is None) == (not plane) or (plane and (self.point is None or self.normal is None)):
+            raise ValueError("a crack is either points = [[x, y], ...] (2D) or point = [x, y, z] with "
+                             "normal = [nx, ny, nz] (3D)")
+        if self.points is not None:
+            if any(len(p) != 2 for p in self.points):
+                raise ValueError("points must be [x, y] pairs")
+            if any(p == q for p, q in zip(self.points[:-1], self.points[1:])):
+                raise ValueError("points: two consecutive points are the same")
+        elif not math.hypot(*(self.normal or [0.0])) > 1e-9:
+            raise ValueError("normal must not be zero")
         return self
 
 
@@ -109,7 +132,8 @@ class EmbeddedSection(_Section):
     regions: list[str] | None = Field(None, description="regions that may localize (default: every "
                                       "drucker_prager region)")
     cracks: list[EmbeddedCrackSection] = Field(default_factory=list, max_length=10_000, description=(
-        "cracks present from the start: [[embedded.cracks]] points = [[x, y], ...], c_p = ... (2D)"))
+        "cracks present from the start: [[embedded.cracks]] points = [[x, y], ...], c_p = ... (2D), or "
+        "point = [x, y, z], normal = [nx, ny, nz], c_p = ... (a plane, 3D)"))
     max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started (those "
                             "of cracks included); further cuts continue them from their tips")
 

@@ -20,8 +20,10 @@ from rockfrac.elements.ede_paths import (
     Onset,
     share_crack_paths,  # noqa: F401  (re-exported: the case builder imports it from here)
 )
+from rockfrac.elements.ede_planes import in_plane_direction
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain
 from rockfrac.laws.bifurcation_plane import screen_plane_strain
+from rockfrac.laws.bifurcation_sphere import screen_sphere
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE
 from rockfrac.mesh.geometry import surface_segment
 
@@ -63,6 +65,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         return self._scan(self.trial, self.trial_sigma, exact_cells=False)[0]
 
     SCREEN_SWEEP = 90  # in-plane normals of the compiled screen (plane strain)
+    SCREEN_POLAR, SCREEN_AZIMUTH = 12, 48  # the compiled screen's hemisphere grid (general 3D)
     SCREEN_MARGIN = 0.05  # points whose screened ratio is below this get the exact search
 
     def _scan(self, state: np.ndarray, sigma: np.ndarray, eligible: np.ndarray | None = None,
@@ -95,8 +98,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             ce, qi = np.nonzero(qmask)
             e_of = cells[ce]
         if e_of.size:
-            if not self.plane_strain:  # 3D: the exact search at every point
-                screened = np.full(e_of.size, -np.inf)
+            if not self.plane_strain:  # 3D: a compiled screen over the hemisphere
+                screened = screen_sphere(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
+                                         self.SCREEN_POLAR, self.SCREEN_AZIMUTH)
             else:
                 screened = screen_plane_strain(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
                                                self.SCREEN_SWEEP)
@@ -280,7 +284,11 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         n = np.zeros(3)
         n[: len(normal)] = normal
         n /= np.linalg.norm(n)
-        if n[1] < 0 or (n[1] == 0 and n[0] < 0):
+        general = not self.plane_strain and self.dim == 3
+        if general:  # a general 3D body: n points up in z (then y, then x)
+            if next(v for v in n[::-1] if v != 0.0) < 0.0:
+                n = -n
+        elif n[1] < 0 or (n[1] == 0 and n[0] < 0):
             n = -n
         t = np.array([n[1], -n[0], 0.0])  # (t, n) right-handed in the x-y plane
         dim = self.dim
@@ -301,6 +309,11 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         w = self.wdet[e] / self.wdet[e].sum()
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])
+        if general:  # t along the shear traction on the surface (frozen with n; q = |shear| >= 0)
+            shear = sig @ n - (n @ sig @ n) * n
+            size = float(np.linalg.norm(shear))
+            tiny = size <= 1e-12 * max(float(np.abs(sig).max()), 1e-300)
+            t = in_plane_direction(n[None])[0] if tiny else shear / size
         q, p = t @ sig @ n, n @ sig @ n
         if c_p is None:
             tphi = math.tan(self.surface.phi_p)

@@ -7,6 +7,7 @@ import numpy as np
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.base import Evaluation, Measure
 from rockfrac.elements.ede_paths import CrackPaths, Onset
+from rockfrac.elements.ede_planes import EDGES, plane_polygons, polygon_areas
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.drucker_prager_params import DruckerPrager
@@ -104,6 +105,8 @@ class EmbeddedCells(DruckerPragerSolid):
     # -- state -----------------------------------------------------------------------------
     def begin_step(self) -> None:
         super().begin_step()
+        if self.dim == 3 and not self.plane_strain:
+            self.align_slip()
         self.e_trial[:] = self.e_state
         self._dz[:] = 0.0
         self._k_prev[:] = 0.0
@@ -113,17 +116,20 @@ class EmbeddedCells(DruckerPragerSolid):
 
     def _surface_work(self) -> float:
         """The traction law's work over the step on the cut cells' surfaces (2D: length |S| of each
-        segment; 0 in 3D, where the surface's area is not kept): |S| <T> . dJ with T = q t + P n the
+        segment; general 3D: the area of each polygon; 0 for a plane-strain hexahedron): |S| <T> . dJ with T = q t + P n the
         averaged traction (trapezoidal in time) [J]. In an exact formulation it equals
         :meth:`_crack_work`; this element's constant jump and volume-averaged traction make them differ."""
-        if self.dim != 2:
+        if self.dim != 2 and self.plane_strain:
             return 0.0
         old, new = self.e_state, self.e_trial
         d_j = new[:, K.E_J:K.E_J + 3] - old[:, K.E_J:K.E_J + 3]
         cut = np.flatnonzero(np.any(d_j != 0.0, axis=1))
         if not cut.size:
             return 0.0
-        length = np.linalg.norm(self.segments[cut, 1] - self.segments[cut, 0], axis=1)
+        if self.dim == 2:
+            length = np.linalg.norm(self.segments[cut, 1] - self.segments[cut, 0], axis=1)
+        else:  # a general 3D body: the areas of the surfaces' polygons
+            length = polygon_areas(self.surface_polygons(cut)[0])
 
         def traction(st):
             return st[cut, K.E_Q, None] * st[cut, K.E_T:K.E_T + 3] + st[cut, K.E_P, None] * st[cut, K.E_N:K.E_N + 3]
@@ -276,6 +282,38 @@ class EmbeddedCells(DruckerPragerSolid):
     def localized(self) -> np.ndarray:
         return np.flatnonzero(self.e_state[:, K.E_LOC] == 1.0)
 
+    def averaged_stress(self, cells: np.ndarray) -> np.ndarray:
+        """The cells' volume-averaged committed stress tensors (k, 3, 3) [Pa]."""
+        w = self.wdet[cells] / self.wdet[cells].sum(axis=1, keepdims=True)
+        v = np.einsum("cq,cqi->ci", w, self.sigma[cells])  # Voigt (xx, yy, zz, xy, yz, xz)
+        return v[:, [[0, 3, 5], [3, 1, 4], [5, 4, 2]]]
+
+    def align_slip(self) -> None:
+        """A general 3D body: each cut cell that has not slid yet takes as its slip direction t the
+        direction of the shear traction of its committed averaged stress on its surface (q = |shear|,
+        s = 1); from its first slide on, t stays frozen. A crack given in advance is cut before any
+        load, so its direction is set by the stress of the steps before it slides."""
+        s = self.e_state
+        cells = np.flatnonzero((s[:, K.E_LOC] == 1.0) & (s[:, K.E_ZETA] == 0.0))
+        if not cells.size:
+            return
+        n = s[cells, K.E_N:K.E_N + 3]
+        traction = np.einsum("cij,cj->ci", self.averaged_stress(cells), n)
+        shear = traction - np.einsum("ci,ci->c", traction, n)[:, None] * n
+        size = np.linalg.norm(shear, axis=1)
+        ok = size > 1e-12 * np.maximum(np.abs(traction).max(axis=1), 1e-300)
+        cells, shear, size = cells[ok], shear[ok], size[ok]
+        s[cells, K.E_T:K.E_T + 3] = shear / size[:, None]
+        s[cells, K.E_SIGN] = 1.0
+        s[cells, K.E_Q] = size
+
+    def surface_polygons(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A general 3D body: where each cut cell's surface cuts it (rockfrac.elements.ede_planes.
+        plane_polygons: vertices (k, 6, 3) [m], their edges' end nodes (local to the cell) and places)."""
+        cells = np.asarray(cells, dtype=np.int64)
+        normal = self.e_state[cells, K.E_N:K.E_N + 3]
+        return plane_polygons(self.x[cells], EDGES[self.ref.name], self.anchor[cells], normal)
+
     def records(self) -> dict[str, np.ndarray]:
         """Committed per-discontinuity quantities (one point per localized cell, local frame (t, n))."""
         cells = self.localized()
@@ -286,8 +324,15 @@ class EmbeddedCells(DruckerPragerSolid):
         law = self.surface_params
         q = np.array([strengths(g, cp, law)[:3] for g, cp in zip(s[:, K.E_GAMMA], s[:, K.E_CP])]).reshape(-1, 3)
         centre = self.x[cells].mean(axis=1) if cells.size else np.zeros((0, self.dim))
+        where = {"x": centre[:, 0], "y": centre[:, 1]}
+        if self.dim == 3 and not self.plane_strain:  # points.csv's 3D columns: frame (t, n x t, n)
+            n = s[:, K.E_N:K.E_N + 3]
+            j2 = np.einsum("ci,ci->c", j, np.cross(n, s[:, K.E_T:K.E_T + 3]))
+            zero = np.zeros(cells.size)
+            where.update({"z": centre[:, 2], "n_x": n[:, 0], "n_y": n[:, 1], "n_z": n[:, 2], "jump_t1": jt,
+                          "jump_t2": j2, "T_t1": s[:, K.E_Q], "T_t2": zero, "jump_p_t1": jt, "jump_p_t2": j2})
         return {
-            "cell": cells, "x": centre[:, 0], "y": centre[:, 1], "jump_t": jt, "jump_n": jn,
+            "cell": cells, **where, "jump_t": jt, "jump_n": jn,
             "angle": np.arctan2(s[:, K.E_T + 1], s[:, K.E_T]),
             "T_t": s[:, K.E_Q], "T_n": s[:, K.E_P], "jump_p_t": jt, "jump_p_n": jn,
             "jump_p_norm": np.linalg.norm(j, axis=1), "gamma": s[:, K.E_GAMMA], "zeta": s[:, K.E_ZETA],

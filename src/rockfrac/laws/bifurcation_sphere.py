@@ -1,4 +1,5 @@
-"""3D bifurcation kernels: local minima of det A / det A^e over the unit sphere (sweep, Newton)."""
+"""3D bifurcation kernels: local minima of det A / det A^e over the unit sphere (sweep, Newton), and
+a coarse screen of many points."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import math
 import numba as nb
 import numpy as np
 
-from rockfrac.laws.acoustic import _ratio, _ratio_grad
+from rockfrac.laws import drucker_prager as dp
+from rockfrac.laws.acoustic import _acoustic, _cofactor, _ratio, _ratio_grad
+from rockfrac.threads import parallel_kernel
 
 # --------------------------------------------------------------------------------------------
 # 3D: sweep over the sphere, then Newton on the tangent plane (analytic gradient, FD Hessian)
@@ -174,3 +177,41 @@ def _sphere_candidates(c, ce, n_polar, n_azimuth, cand):
             cand[0, k] = pt[k]
         count = 1
     return count
+
+
+@parallel_kernel(cost=1.2e-5)  # s per item, one thread (an estimate: 3x the plane-strain screen's normals)
+def screen_sphere(sigma, p, ce, n_polar, n_azimuth):
+    """Min over a grid of unit normals of det A / det A^e (eq. 7-8, f and g of the Drucker-Prager law
+    at each stress), for many points: sigma (n, 6) [Pa] -> (n,). The grid covers the upper
+    hemisphere (n and -n are one band): n_polar levels over (0, pi/2], n_azimuth over [0, 2 pi). A
+    coarse bound from above of the true minimum: refine with localization_3d where it is small. The
+    normals and det A^e(n) are the same at every point: computed once."""
+    n = sigma.shape[0]
+    out = np.empty(n)
+    m = n_polar * n_azimuth
+    normals = np.zeros((m, 3))
+    det_e = np.empty(m)
+    a = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    for i in range(n_polar):
+        th = 0.5 * math.pi * (i + 1.0) / n_polar
+        for j in range(n_azimuth):
+            ph = 2.0 * math.pi * j / n_azimuth
+            k = i * n_azimuth + j
+            normals[k, 0] = math.sin(th) * math.cos(ph)
+            normals[k, 1] = math.sin(th) * math.sin(ph)
+            normals[k, 2] = math.cos(th)
+            _acoustic(ce, normals[k], a)
+            det_e[k] = _cofactor(a, cof)
+    n_chunks = max(1, min(n, 256))
+    for ch in nb.prange(n_chunks):
+        ai = np.empty((3, 3))
+        ci = np.empty((3, 3))
+        for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
+            c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
+            best = np.inf
+            for k in range(m):
+                _acoustic(c, normals[k], ai)
+                best = min(best, _cofactor(ai, ci) / det_e[k])
+            out[i] = best
+    return out

@@ -189,7 +189,8 @@ def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
         divisions: tuple[int, int, int] = (2, 2, 2), element: str = "hex8") -> Path:
     """A structured box [0, lx] x [0, ly] x [0, lz] [m] (region rock), ``divisions`` cells along x,
     y, z (element "hex8"; "tet4": each hexahedron split into tetrahedra by Gmsh); faces left/right
-    (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz)."""
+    (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz), and the edges where two meet, named
+    after both (bottom_left, ..., front_left, back_right: z-faces first, then y-faces)."""
     import gmsh
 
     if element not in ("hex8", "tet4"):
@@ -208,7 +209,7 @@ def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
                 gmsh.model.mesh.setRecombine(2, s)
         gmsh.model.mesh.setTransfiniteVolume(1)
         gmsh.model.addPhysicalGroup(3, [1], name="rock")
-        e = 1e-6 * max(size)
+        e = 1e-3 * min(size)  # OCC pads bounding boxes by its tolerance (~1e-7 m): a margin relative to the box
         for name, axis, at in (("left", 0, 0.0), ("right", 0, lx), ("front", 1, 0.0), ("back", 1, ly),
                                ("bottom", 2, 0.0), ("top", 2, lz)):
             lo = [-e, -e, -e]
@@ -216,6 +217,17 @@ def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
             lo[axis], hi[axis] = at - e, at + e
             faces = [t for _, t in gmsh.model.getEntitiesInBoundingBox(*lo, *hi, dim=2)]
             gmsh.model.addPhysicalGroup(2, faces, name=name)
+        sides = {"left": (0, 0.0), "right": (0, lx), "front": (1, 0.0), "back": (1, ly), "bottom": (2, 0.0),
+                 "top": (2, lz)}
+        for one, two in (("bottom", "left"), ("bottom", "right"), ("bottom", "front"), ("bottom", "back"),
+                         ("top", "left"), ("top", "right"), ("top", "front"), ("top", "back"),
+                         ("front", "left"), ("front", "right"), ("back", "left"), ("back", "right")):
+            lo = [-e, -e, -e]
+            hi = [lx + e, ly + e, lz + e]
+            for axis, at in (sides[one], sides[two]):
+                lo[axis], hi[axis] = at - e, at + e
+            edges = [t for _, t in gmsh.model.getEntitiesInBoundingBox(*lo, *hi, dim=1)]
+            gmsh.model.addPhysicalGroup(1, edges, name=f"{one}_{two}")
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         path = Path(path)

@@ -112,9 +112,21 @@ def yielded_interfaces_3d(fields: StepFields, magnification: float) -> CrackLine
     return CrackLines(x[conn[keep]].mean(axis=1)[:, None, :], np.linalg.norm(jump[keep], axis=1))
 
 
+def embedded_surfaces_3d(fields: StepFields, magnification: float) -> CrackLines:
+    """The deformed triangles (k, 3, 3) [m] of a 3D body's embedded crack surfaces, with the norms of
+    their jumps (k,) [m]."""
+    b = next((k for k, (kind, _) in enumerate(fields.cells) if kind == "triangle"
+              and int(fields.cell_data["cell_kind"][k][0]) == int(CellKind.EMBEDDED)), None)
+    if b is None or not len(fields.cells[b][1]):
+        return CrackLines(np.zeros((0, 3, 3)), np.zeros(0))
+    x = fields.points + magnification * fields.point_data["displacement"]
+    return CrackLines(x[fields.cells[b][1]], np.linalg.norm(fields.cell_data["jump"][b], axis=1))
+
+
 def draw_crack_map_3d(ax, fields: StepFields, magnification: float = 1.0, title: str = "") -> CrackLines:
-    """A 3D axis: the deformed body's outer edges (its bounding wireframe) and the yielded interface
-    cells' centres coloured by |jump| [mm]; returns them."""
+    """A 3D axis: the deformed body's outer edges (its bounding wireframe), the yielded interface
+    cells' centres and the embedded crack surfaces, coloured by |jump| [mm]; returns the interface
+    cells and the surfaces' triangles."""
     x = (fields.points + magnification * fields.point_data["displacement"]) * 1e3
     lo, hi = x.min(axis=0), x.max(axis=0)
     for i in range(3):  # the bounding box's twelve edges
@@ -131,13 +143,22 @@ def draw_crack_map_3d(ax, fields: StepFields, magnification: float = 1.0, title:
         c = cracks.segments[:, 0] * 1e3
         dots = ax.scatter(c[:, 0], c[:, 1], c[:, 2], c=cracks.opening * 1e3, cmap="plasma", s=6)
         ax.figure.colorbar(dots, ax=ax, label="|jump| [mm]", shrink=0.6)
+    surfaces = embedded_surfaces_3d(fields, magnification)
+    if surfaces.opening.size:
+        from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+        patches = Poly3DCollection(list(surfaces.segments * 1e3), cmap="plasma", edgecolor="none")
+        patches.set_array(surfaces.opening * 1e3)
+        ax.add_collection3d(patches)
+        ax.figure.colorbar(patches, ax=ax, label="embedded |jump| [mm]", shrink=0.6)
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_zlabel("z [mm]")
     ax.set_box_aspect(tuple(np.maximum(hi - lo, 1e-9 * max(hi - lo))))
     ax.set_title(title or f"deformed x{magnification:g}, {cracks.opening.size} yielded interface cells",
                  fontsize=9)
-    return cracks
+    return CrackLines(np.concatenate([np.repeat(cracks.segments, 3, axis=1), surfaces.segments]),
+                      np.concatenate([cracks.opening, surfaces.opening]))
 
 
 def save_crack_map(path, fields: StepFields, magnification: float, cell_field: str = "gamma",

@@ -1,11 +1,14 @@
 """The fields of a converged step for ParaView: displacement, cell-averaged stresses and plastic
-variables, cohesive surfaces (zero-thickness quads) and embedded crack segments with their jumps,
+variables, cohesive surfaces (zero-thickness quads) and embedded crack segments (2D) or polygons (3D, as
+triangles) with their jumps,
 tractions, strengths and states (see :mod:`rockfrac.output.vtk` for how each is written)."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from rockfrac.elements import ede_kernel as K
+from rockfrac.elements.ede_planes import MAX_VERTICES, fan_triangles
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
 
@@ -104,6 +107,45 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
                                                                   for k in names}
 
 
+def _surfaces(built, disp: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None, dict, dict]:
+    """A general 3D body's embedded crack surfaces: each cut cell's polygon as a fan of triangles
+    (vertices (k, 3, 3) [m]), their host cells, their fields (jump and traction in the surface's frame
+    (t, n x t, n), strengths, state) and the displacement at their vertices (3k, 3), exact: each vertex
+    is on a cell edge, along which the nodal field is linear. Every MPI rank's, in the serial order."""
+    parts = []
+    for g in built.embeddeds:
+        if g.dim != 3 or g.plane_strain:
+            continue
+        cells = g.localized()
+        verts, ends, where = g.surface_polygons(cells)
+        poly, tri = fan_triangles(verts)
+        corners = tri.ravel()
+        a = g.cells[cells[poly].repeat(3), ends.reshape(-1, 2)[corners, 0]]
+        b = g.cells[cells[poly].repeat(3), ends.reshape(-1, 2)[corners, 1]]
+        w = where.ravel()[corners][:, None]
+        st = g.e_state[cells]
+        t, n = st[:, K.E_T:K.E_T + 3], st[:, K.E_N:K.E_N + 3]
+        t2 = np.cross(n, t)
+        j = st[:, K.E_J:K.E_J + 3]
+        rec = g.records()
+        mine = {"x": verts.reshape(-1, 3)[tri], "u": ((1.0 - w) * disp[a] + w * disp[b]).reshape(-1, 3, 3),
+                "host": g.cell_ids[cells][poly],
+                "jump": np.column_stack([np.einsum("ci,ci->c", j, v) for v in (t, t2, n)])[poly],
+                "traction": np.column_stack([st[:, K.E_Q], np.zeros(cells.size), st[:, K.E_P]])[poly],
+                "c": rec["c"][poly], "tan_phi": rec["tan_phi"][poly],
+                "state": np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8)[poly]}
+        order = g.serial_index[cells][poly] * (4 * MAX_VERTICES) + np.arange(poly.size) - np.searchsorted(poly, poly)
+        whole = built.model.gather_records(mine, order)
+        if whole is not None and whole["host"].size:
+            parts.append(whole)
+    if not parts:
+        return None, None, {}, {}
+    names = ("jump", "traction", "c", "tan_phi", "state")
+    return (np.vstack([p["x"] for p in parts]), np.concatenate([p["host"] for p in parts]),
+            {k: np.concatenate([p[k] for p in parts]) for k in names},
+            {"displacement": np.vstack([p["u"] for p in parts]).reshape(-1, 3)})
+
+
 def step_output(built, u: np.ndarray) -> StepFields:
     """The ParaView fields of the committed state at displacement u (on several MPI ranks, the whole
     model's, a collective call)."""
@@ -131,6 +173,9 @@ def _step_output(built, u: np.ndarray) -> tuple[StepFields, np.ndarray | None]:
     mesh = built.mesh
     disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
+    triangles, tri_hosts, tri_data, tri_points = _surfaces(built, disp)
+    if triangles is not None:
+        hosts = tri_hosts  # a general 3D body has no segments
     return step_fields(
         mesh.nodes, mesh.cells, mesh.cell_type,
         interfaces=mesh.interfaces if mesh.interfaces.size else None,
@@ -139,4 +184,6 @@ def _step_output(built, u: np.ndarray) -> tuple[StepFields, np.ndarray | None]:
         bulk_data=_bulk_fields(built, u),
         interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
+        triangles=triangles, triangle_data=tri_data or None,
+        triangle_point_data=tri_points or None,
     ), hosts

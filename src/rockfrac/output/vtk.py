@@ -266,15 +266,22 @@ def step_fields(nodes: np.ndarray, cells: np.ndarray, cell_type: str, *,
                 bulk_data: Mapping[str, np.ndarray] | None = None,
                 interface_data: Mapping[str, np.ndarray] | None = None,
                 segment_data: Mapping[str, np.ndarray] | None = None,
-                segment_point_data: Mapping[str, np.ndarray] | None = None) -> StepFields:
-    """A step's grid: bulk cells, then interface quads, then embedded segments as lines.
+                segment_point_data: Mapping[str, np.ndarray] | None = None,
+                triangles: np.ndarray | None = None,
+                triangle_data: Mapping[str, np.ndarray] | None = None,
+                triangle_point_data: Mapping[str, np.ndarray] | None = None) -> StepFields:
+    """A step's grid: bulk cells, then interface quads, then embedded segments as lines, then
+    embedded surfaces (3D) as triangles.
 
     nodes (n, dim), cells (n_el, m) of ``cell_type`` ("tri3", "quad4", "hex8");
     interfaces (n_if, 4) = (m0, m1, p0, p1), written as quads (m0, m1, p1, p0);
     segments = (x0, x1), (k, 2|3) end points of embedded cracks, in host cells segment_cells (k,);
     point_data: nodal fields (n, ...); at the segments' extra points segment_point_data (2k, ...)
         if given, else N d interpolated in the host cell, else NaN;
-    bulk_data, interface_data, segment_data: cell fields of each kind, NaN-padded to all cells.
+    triangles (k, 3, 3): vertices of the embedded surfaces' triangles, with point fields
+        triangle_point_data (3k, ...) (NaN for the others);
+    bulk_data, interface_data, segment_data, triangle_data: cell fields of each kind, NaN-padded to
+    all cells.
     The field ``cell_kind`` (`CellKind`) is added. Empty kinds write no block.
     """
     if cell_type not in MESHIO_TYPES:
@@ -310,6 +317,20 @@ def step_fields(nodes: np.ndarray, cells: np.ndarray, cell_type: str, *,
                                                        host, extra)
             else:
                 extra_values[name] = np.full((extra.shape[0], *np.shape(arr)[1:]), np.nan)
+    if triangles is not None and len(triangles):
+        first = points.shape[0] if points is not nodes else n_nodes
+        if points is nodes:
+            points = _pad_columns(nodes, 3)
+        tri = np.asarray(triangles, dtype=np.float64).reshape(-1, 3)
+        points = np.concatenate([points, tri])
+        blocks.append(("triangle", first + np.arange(tri.shape[0], dtype=np.int64).reshape(-1, 3)))
+        data.append(dict(triangle_data or {}))
+        kinds.append(CellKind.EMBEDDED)
+        given = dict(triangle_point_data or {})
+        for name, arr in (point_data or {}).items():
+            here = np.asarray(given[name]) if name in given else np.full((tri.shape[0], *np.shape(arr)[1:]), np.nan)
+            extra_values[name] = (here if name not in extra_values
+                                  else np.concatenate([extra_values[name], here]))
     pdata = {}
     for name, arr in (point_data or {}).items():
         arr = np.asarray(arr)

@@ -155,3 +155,59 @@ def test_no_ep_return_fails_with_stiff_penalties(name, kw, k):
                     if st < 0 or (st == 1 and _residual(s_new, du, p, eps, t_old) > 1e-9):
                         failed.append((eps, mag, deg, t_old, st))
     assert failed == []
+
+
+def test_the_element_kernel_rescues_its_failed_points_only():
+    """MohrCoulombSurface.ep_points: the compiled point loop leaves a failed return failed (< 0); the
+    law's wrapper then solves those points again with the rescue, and their blocks come from it."""
+    from rockfrac.laws.mohr_coulomb_surface import MohrCoulombParameters, MohrCoulombSurface
+
+    kw, k, eps, mag, deg = FAILED_BEFORE[3]  # a fully softened surface opened and sheared
+    law = MohrCoulombSurface(MohrCoulombParameters(**kw), kn=k, kt=k)
+    du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    n = 3  # an elastic point, the failing one, and the same again
+    frame = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
+    weight = np.full(n, 0.5)
+    djump = np.array([1e-3 * du, du, du])
+    s_old = np.zeros((n, N_STATE))
+    s_old[1:, S_EPSN] = s_old[1:, S_EPSS] = eps
+    d_old = np.zeros((n, 2, 2))
+
+    def run(kernel_only):
+        s_new, d_new = np.zeros((n, N_STATE)), np.zeros((n, 2, 2))
+        fe, ke, status = np.zeros((n, 4)), np.zeros((n, 4, 4)), np.zeros(n, dtype=np.int64)
+        if kernel_only:
+            type(law).ep_kernel(frame, weight, djump, s_old, d_old, law.p, s_new, d_new, fe, ke, status)
+        else:
+            law.ep_points(frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status)
+        return s_new, d_new, fe, status
+
+    _, _, _, plain = run(True)
+    assert plain[0] == 0 and plain[1] < 0 and plain[2] < 0
+    s_new, d_new, fe, status = run(False)
+    assert status.tolist() == [0, 1, 1]
+    st, ref, d_ref = _ep(du, law.p, eps)
+    assert st == 1
+    np.testing.assert_array_equal(s_new[1], ref)
+    np.testing.assert_array_equal(d_new[1], d_ref)
+    # the blocks of the rescued point: w T on the plus side, -w T on the minus side
+    np.testing.assert_allclose(fe[1], [-0.5 * ref[S_TT], -0.5 * ref[S_TN], 0.5 * ref[S_TT], 0.5 * ref[S_TN]],
+                               rtol=1e-14, atol=1e-300)
+
+
+def test_a_run_without_failed_points_does_not_compile_the_rescue(tmp_path):
+    """The paper's EP case in a fresh process: no point fails its return, so the rescue kernel is never
+    compiled (nor its first-run cost paid)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.path.insert(0, 'tests')\n"
+            "from conftest import paper_case\n"
+            "from rockfrac.case.schema import parse_case\n"
+            "from rockfrac.runner import run_case\n"
+            "from rockfrac.laws import mohr_coulomb_surface as M\n"
+            f"s = run_case(parse_case(paper_case('ep', 1e9, axial_steps=40)), r'{tmp_path / 'o'}')\n"
+            "print('COMPLETED', s.result.completed, 'RESCUE', len(M.ep_rescue_points.signatures))\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                          cwd=str(__import__("pathlib").Path(__file__).resolve().parents[1]))
+    assert "COMPLETED True RESCUE 0" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]

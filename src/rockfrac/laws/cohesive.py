@@ -116,8 +116,8 @@ def return_map(du, s_old, comp, p, s_new, D):
     penalty compliances; flow starts where the elastic path leaves the old surface.
     Returns 0 elastic, 1 plastic, < 0 failure (-1 no convergence, -2 dgamma < 0, -3 singular/NaN).
     """
-    return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
-                       comp[0], comp[1], s_old, p, s_new, D, workspace(), True)
+    return rescued_step(du[0], du[1], s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
+                        comp[0], comp[1], s_old, p, s_new, D, workspace())
 
 
 @nb.njit(cache=True)
@@ -128,20 +128,18 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
     traction with START_GIVEN (committed plastic) or START_NONE (see the module doc).
     """
     return return_step(du[0], du[1], s_old[S_TT], s_old[S_TN], t_s[0], t_s[1], start, comp[0], comp[1],
-                       s_old, p, s_new, D, workspace(), False)
+                       s_old, p, s_new, D, workspace())
 
 
 @nb.njit(cache=True)
-def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk, rescue):
+def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
 
     (du_t, du_n) [m]: local jump increment; (t_old_t, t_old_n) [Pa]: the traction of the trial
     T^tr = T_old + K^e du, K^e = diag(1/ct, 1/cn); (t_s_t, t_s_n), start: the work rule's
     start-of-flow traction. s_old supplies the ISVs and plastic jumps (its traction is not read).
-    rescue: where the Newton from the frozen guess fails, solve the same return from a bracketed guess
-    or by continuation (:mod:`rockfrac.laws.cohesive_rescue`); the EP form's, whose du is a jump
-    increment. The RP form's augmented trials of a diverging global iterate fail instead, which cuts
-    the step.
+    Where the Newton from the frozen guess fails it fails (< 0): :func:`rescued_step` then solves the
+    same return another way.
     Inlined: the elastic test and update run in the caller's loop, and only a yielding point makes
     a call that takes wk (passing the workspace tuple costs its 14 arrays' reference counts, ~0.1 us,
     measured).
@@ -151,12 +149,11 @@ def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old
     if yield_function(tt, tn, s_old[S_EPSN], s_old[S_EPSS], p) <= elastic_tolerance(p):
         return elastic_update(tt, tn, ct, cn, s_old, s_new, D)
     return _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D,
-                         wk, rescue)
+                         wk)
 
 
 @nb.njit(cache=True)
-def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk,
-                  rescue):
+def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """The return of :func:`return_step` from the trial (tt, tn) [Pa], which is outside the surface."""
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
     x, ws, dws, du, comp, t_old, t_s = wk[7], wk[8], wk[9], wk[10], wk[11], wk[12], wk[13]
@@ -170,8 +167,12 @@ def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct,
     if not _frozen_return(x, du, t_old, comp, p, sgn):
         x[0], x[1], x[2], x[3], x[4] = tt, tn, en_old, es_old, 0.0
     st = _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk)
-    if rescue and (st < 0 or x[4] < 0.0):  # the same return from a bracketed guess or by continuation
-        st = rescue_return(x, du, t_old, t_s, start, en_old, es_old, comp, p, ws, dws, wk)
+    return _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk)
+
+
+@nb.njit(cache=True)
+def _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk):
+    """After the local Newton (status st, solution x): the checks, the consistent tangent and the commit."""
     if st < 0:
         return st
     if x[4] < 0.0:
@@ -184,16 +185,45 @@ def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct,
 
 
 @nb.njit(cache=True)
+def rescued_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
+    """:func:`return_step`, and where its Newton from the frozen guess fails, the same backward-Euler
+    return from a bracketed guess or by continuation (:mod:`rockfrac.laws.cohesive_rescue`): the EP
+    form's (du a jump increment). A separate entry so that only a run that needs it compiles it (the
+    element kernels call it for their failed points: :func:`rockfrac.laws.mohr_coulomb_surface.
+    ep_rescue_points`). The RP form's augmented trials of a diverging global iterate are not rescued:
+    they fail, which cuts the step."""
+    st = return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk)
+    if st >= 0:
+        return st
+    en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
+    x, ws, dws, du, comp, t_old, t_s = wk[7], wk[8], wk[9], wk[10], wk[11], wk[12], wk[13]
+    du[0], du[1] = du_t, du_n  # _plastic_step's set-up (the trial is outside: it returned < 0)
+    comp[0], comp[1] = ct, cn
+    t_old[0], t_old[1] = t_old_t, t_old_n
+    t_s[0], t_s[1] = t_s_t, t_s_n
+    st = rescue_return(x, du, t_old, t_s, start, en_old, es_old, comp, p, ws, dws, wk)
+    return _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk)
+
+
+@nb.njit(cache=True)
 def ep_update(du, s_old, p, s_new, D):
-    """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m]."""
-    return ep_update_jump(du[0], du[1], s_old, p, s_new, D, workspace())
+    """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m];
+    rescued where its Newton fails (:func:`rescued_step`)."""
+    return ep_rescued_jump(du[0], du[1], s_old, p, s_new, D, workspace())
+
+
+@nb.njit(cache=True)
+def ep_rescued_jump(du_t, du_n, s_old, p, s_new, D, wk):
+    """:func:`ep_update_jump`, rescued where its Newton fails (:func:`rescued_step`)."""
+    return rescued_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
+                        p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
 
 
 @nb.njit(cache=True)
 def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
     """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`."""
     return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
-                       p[P_CT], p[P_CN], s_old, p, s_new, D, wk, True)
+                       p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
 
 
 CHUNK = 256  # points per prange item: one workspace each, small enough to balance plastic clusters

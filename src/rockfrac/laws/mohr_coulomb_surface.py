@@ -23,7 +23,14 @@ from rockfrac.fem.interface import (
     pair_blocks_local,
 )
 from rockfrac.laws import cohesive_surface as _law
-from rockfrac.laws.cohesive import elastic_update, ep_update, ep_update_jump, return_step
+from rockfrac.laws.cohesive import (
+    elastic_update,
+    ep_rescued_jump,
+    ep_update,
+    ep_update_jump,
+    rescued_step,
+    return_step,
+)
 from rockfrac.laws.cohesive_params import (
     MODE_PLASTIC,
     S_DGAMMA,
@@ -96,6 +103,18 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
 
 
 @nb.njit(cache=True)
+def ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke, status):
+    """The points ``index`` of :func:`ep_points` whose return failed, again with the rescued return
+    (:func:`rockfrac.laws.cohesive.rescued_step`): compiled only when a run first needs it."""
+    wk = workspace()
+    for i in index:
+        r = frame[i]
+        du_t, du_n = local_jump(r, djump[i])
+        status[i] = ep_rescued_jump(du_t, du_n, s_old[i], p, s_new[i], d_new[i], wk)
+        pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
+
+
+@nb.njit(cache=True)
 def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched, wk):
     """Point i of :func:`rp_points`."""
@@ -122,7 +141,7 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
                       >= -_law.elastic_tolerance(p))
         start = START_GIVEN if on_surface else START_NONE
         status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
-                                s_old[i], p, s_new[i], d_new[i], wk, False)
+                                s_old[i], p, s_new[i], d_new[i], wk)
     switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
     fi = fe[i]
     ki = ke[i]
@@ -174,8 +193,8 @@ def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     if _law.yield_function(tr_t, tr_n, s_old[S_EPSN], s_old[S_EPSS], p) <= _law.elastic_tolerance(p):
         return elastic_update(tr_t, tr_n, ct, cn, s_old, s_new, D)  # only a yielding point allocates
     t_t, t_n = s_old[S_TT], s_old[S_TN]
-    return return_step((tr_t - t_t) * ct, (tr_n - t_n) * cn, t_t, t_n, t_t, t_n, np.int64(START_CROSSING), ct, cn,
-                       s_old, p, s_new, D, workspace(), True)
+    return rescued_step((tr_t - t_t) * ct, (tr_n - t_n) * cn, t_t, t_n, t_t, t_n, np.int64(START_CROSSING), ct, cn,
+                        s_old, p, s_new, D, workspace())
 
 
 class MohrCoulombSurface(TractionLaw):
@@ -189,6 +208,7 @@ class MohrCoulombSurface(TractionLaw):
     dgamma_slot = S_DGAMMA
     record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
     ep_kernel = ep_points
+    rescue_kernel = ep_rescue_points
     rp_kernel = rp_points
     trial_kernel = trial_return
 

@@ -19,6 +19,9 @@ parameter vector p):
 - ``rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
   fe, ke, status, switched)``: the rigid-plastic form with augmented multipliers (Sect. 6.2), blocks
   (n, 6), (n, 6, 6) (see :func:`rockfrac.fem.interface.multiplier_rows`);
+- ``ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke, status)``
+  (``rescue_kernel``, optional): the points of ``ep_points`` whose return failed, solved another way
+  (called only where one failed, so compiled only by a run that needs it);
 - ``point_update(du, s_old, p, s_new, D)``: one EP update of one point (the material-point driver);
 - ``trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) -> status`` (``trial_kernel``): the return
   from the trial traction (tr_t, tr_n) [Pa] with K = diag(1/ct, 1/cn), T_old = s_old's traction,
@@ -79,6 +82,8 @@ class TractionLaw(ABC):
     dgamma_slot: ClassVar[int]  # where the state keeps the last update's plastic multiplier increment
     record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
     ep_kernel: ClassVar[Any]  # the compiled ep_points(..., p, ...) of the module docstring
+    rescue_kernel: ClassVar[Any] = None  # ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new,
+    # fe, ke, status): the EP points whose return failed, solved another way (None: the law has none)
     rp_kernel: ClassVar[Any]  # the compiled rp_points(..., p, ...)
     trial_kernel: ClassVar[Any]  # the compiled trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) (3D)
 
@@ -109,6 +114,9 @@ class TractionLaw(ABC):
     def ep_points(self, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:
         """The EP form at every point (see the module docstring), with this law's parameters."""
         type(self).ep_kernel(frame, weight, djump, s_old, d_old, self.p, s_new, d_new, fe, ke, status)
+        rescue = type(self).rescue_kernel
+        if rescue is not None and status.min(initial=0) < 0:  # compiled when a run first needs it
+            rescue(np.flatnonzero(status < 0), frame, weight, djump, s_old, self.p, s_new, d_new, fe, ke, status)
 
     def rp_points(self, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, s_new, d_new, fe,
                   ke, status, switched) -> None:

@@ -62,12 +62,17 @@ class Model:
     _bc_hit: np.ndarray = field(init=False, repr=False)
     _bc_diag: np.ndarray = field(init=False, repr=False)
 
-    def __post_init__(self) -> None:
+    def number_extras(self) -> int:
+        """Number the groups' extra unknowns after the displacements; returns the number of dofs."""
         n = self.dim * self.n_nodes
         for g in self.groups:
-            if g.n_extra:
+            if g.extra_span():
                 g.set_offset(n)
-                n += g.n_extra
+                n += g.extra_span()
+        return n
+
+    def __post_init__(self) -> None:
+        n = self.number_extras()
         self.n_dofs = n
         self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
         data = np.zeros(self.pattern.nnz)

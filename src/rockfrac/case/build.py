@@ -144,12 +144,12 @@ def resolve(case: Case, path: str = "<case>") -> Case:
 
 
 def refuse_distributed(case: Case, path: str) -> None:
-    """CaseError for what does not run on several MPI ranks yet, named (rockfrac.parallel)."""
-    why = "does not run on several MPI ranks yet; run it on one process"
-    for k, c in enumerate(case.cohesive_sets):
-        if c.form is CohesiveForm.rp:
-            raise CaseError(f"{path}: [cohesive] ({k + 1}) form = 'rp': rigid-plastic surfaces {why} (their "
-                            "multipliers are not partitioned); form = 'ep' does")
+    """CaseError for what does not run on several MPI ranks, named (rockfrac.parallel)."""
+    rp = [k for k, c in enumerate(case.cohesive_sets) if c.form is CohesiveForm.rp]
+    if rp and case.solver.linear.value in ("petsc-gamg", "petsc-hypre"):
+        raise CaseError(f"{path}: [solver] linear = '{case.solver.linear.value}' with rigid-plastic surfaces ([cohesive] "
+                        f"({rp[0] + 1}) form = 'rp') on several MPI ranks: their multipliers make saddle points that "
+                        "an AMG preconditioner does not take; use 'auto' or 'petsc' (MUMPS's LU)")
 
 
 def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:
@@ -171,11 +171,22 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     except ValueError as err:
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives: list = []
+    extra_part = []  # the owning rank of each rigid-plastic point's multipliers, set after set
     for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
         points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+        total = points.n
         if part is not None and distribution is not None:  # each point on the rank of its first interface cell
-            points = points.subset(part.interface_part[cells[points.cell]] == distribution.rank)
-        cohesives += cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
+            where = part.interface_part[cells[points.cell]]
+            points = points.subset(where == distribution.rank)
+            if section.form is CohesiveForm.rp:
+                extra_part.append(where)
+        groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
+        for g in groups:
+            if isinstance(g, CohesiveRP):
+                g.total_points = total  # the multipliers are numbered over the whole set, on every rank
+        cohesives += groups
+    if part is not None and extra_part:
+        part = part.with_extras(np.concatenate(extra_part))
     if distribution is None or part is None:
         model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:

@@ -57,6 +57,11 @@ class ElementGroup(ABC):
     def set_offset(self, offset: int) -> None:
         """Number the group's extra unknowns from ``offset`` (groups without extras: nothing)."""
 
+    def extra_span(self) -> int:
+        """How many extra dofs the group's numbering takes: its own (n_extra), or on an MPI rank, the
+        whole set's (every rank numbers every set's extras alike)."""
+        return self.n_extra
+
     @abstractmethod
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         """Element vectors and consistent tangent blocks at u, the trial state from the committed one

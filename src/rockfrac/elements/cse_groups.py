@@ -358,6 +358,8 @@ class CohesiveRP(_CohesiveGroup):
         self._released = np.zeros(points.n, dtype=bool)  # pinned once and let go in this step
         self.n_extra = self.dim * points.n
         self.offset = -1
+        self.lam_dofs = np.zeros((0, self.dim), dtype=np.int64)  # each point's multiplier dofs (n_pts, dim)
+        self.total_points = points.n  # the whole set's, on every MPI rank (its points are points.index of them)
 
     def begin_step(self) -> None:
         super().begin_step()
@@ -366,14 +368,19 @@ class CohesiveRP(_CohesiveGroup):
         self._released[:] = False
 
     def set_offset(self, offset: int) -> None:
-        """Number the multiplier dofs from ``offset`` on."""
+        """Number the multiplier dofs from ``offset`` on: point k's are offset + dim index_k + (0..dim-1),
+        index_k its place in the whole set (its own place on one process; on an MPI rank, the whole
+        set's numbering, so every rank agrees on it)."""
         self.offset = offset
-        lam = offset + np.arange(self.n_extra).reshape(-1, self.dim)
-        self.dofs = np.hstack([self.points.dofs, lam])
+        self.lam_dofs = offset + self.dim * np.asarray(self.points.index)[:, None] + np.arange(self.dim)
+        self.dofs = np.hstack([self.points.dofs, self.lam_dofs])
+
+    def extra_span(self) -> int:
+        return self.dim * self.total_points
 
     def initial_unknowns(self, u0: np.ndarray) -> None:
         """The multipliers start at the in-situ tractions (global frame)."""
-        u0[self.offset: self.offset + self.n_extra] = self.initial_traction.ravel()
+        u0[self.lam_dofs] = self.initial_traction
 
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Multiplier dofs whose constraint the Dirichlet conditions already impose: both nodes of the
@@ -388,12 +395,12 @@ class CohesiveRP(_CohesiveGroup):
         out = []
         for a in range(d):
             both = held[d * self.points.minus + a] & held[d * self.points.plus + a]
-            out.append(self.offset + d * np.flatnonzero(both) + a)
+            out.append(self.lam_dofs[both, a])
         return np.concatenate(out).astype(np.int64)
 
     def multipliers(self, u: np.ndarray) -> np.ndarray:
         """Global-frame multipliers (n_pts, dim) [Pa]."""
-        return u[self.offset : self.offset + self.n_extra].reshape(-1, self.dim)
+        return u[self.lam_dofs]
 
     def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """Local tractions' increment (n_pts, dim) [Pa] along du while every point is constrained: the

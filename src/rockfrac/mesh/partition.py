@@ -12,7 +12,7 @@ distributed matrices and vectors.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,7 +26,9 @@ class Partition:
 
     cell_part, interface_part, node_part: the owning part of each bulk cell, interface cell, node.
     node_order: the nodes sorted by (part, index): node_order[k] gets the new index k.
-    node_starts: (n_parts + 1,) the new node indices of part r are node_starts[r] .. node_starts[r+1].
+    node_starts: (n_parts + 1,) the new node indices of part r are node_starts[r] .. node_starts[r+1]
+    (without extra dofs).
+    extra_part: the owning part of each block of ``dim`` extra dofs (see :meth:`with_extras`).
     """
 
     n_parts: int
@@ -37,24 +39,43 @@ class Partition:
     node_order: np.ndarray
     node_starts: np.ndarray
 
+    extra_part: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
     @property
     def n_dofs(self) -> int:
-        return self.dim * self.node_part.shape[0]
+        return self.dim * (self.node_part.shape[0] + self.extra_part.shape[0])
+
+    def with_extras(self, extra_part: np.ndarray) -> Partition:
+        """The partition with blocks of ``dim`` extra dofs after the node dofs (rigid-plastic
+        multipliers, one block per interface point, in the model's numbering), each owned by
+        ``extra_part``: a part's PETSc block is its nodes' dofs, then its extra blocks'."""
+        return replace(self, extra_part=np.asarray(extra_part, dtype=np.int64))
+
+    def _blocks(self) -> tuple[np.ndarray, np.ndarray]:
+        """The blocks (nodes, then extras) sorted by (part, nodes first, index), and each part's first."""
+        part = np.concatenate([self.node_part, self.extra_part])
+        kind = np.repeat([0, 1], [self.node_part.shape[0], self.extra_part.shape[0]])
+        order = np.lexsort((np.arange(part.shape[0]), kind, part))
+        return order, np.searchsorted(part[order], np.arange(self.n_parts + 1))
 
     def new_dofs(self) -> np.ndarray:
-        """(n_dofs,) the renumbered (PETSc) index of every dof: node n's component k is dim n + k."""
-        new_node = np.empty_like(self.node_order)
-        new_node[self.node_order] = np.arange(self.node_order.shape[0])
-        return (self.dim * new_node[:, None] + np.arange(self.dim)).ravel()
+        """(n_dofs,) the renumbered (PETSc) index of every dof: block b's component k is dim b + k
+        (node n is block n; extra block e is block n_nodes + e)."""
+        order, _ = self._blocks()
+        new = np.empty_like(order)
+        new[order] = np.arange(order.shape[0])
+        return (self.dim * new[:, None] + np.arange(self.dim)).ravel()
 
     def owned_range(self, part: int) -> tuple[int, int]:
         """The part's block of renumbered dofs [start, end)."""
-        return self.dim * int(self.node_starts[part]), self.dim * int(self.node_starts[part + 1])
+        _, starts = self._blocks()
+        return self.dim * int(starts[part]), self.dim * int(starts[part + 1])
 
     def owned_dofs(self, part: int) -> np.ndarray:
         """The part's dofs in the original numbering, in the order of their renumbered indices."""
-        nodes = self.node_order[self.node_starts[part]:self.node_starts[part + 1]]
-        return (self.dim * nodes[:, None] + np.arange(self.dim)).ravel()
+        order, starts = self._blocks()
+        blocks = order[starts[part]:starts[part + 1]]
+        return (self.dim * blocks[:, None] + np.arange(self.dim)).ravel()
 
 
 def element_graph(mesh: Mesh) -> sp.csr_matrix:

@@ -42,7 +42,8 @@ class Layout:
         missing = np.setdiff1d(self.owned, self.local)
         if missing.size:  # an owned dof no element of the rank touches: not a partition of this mesh
             raise ValueError(f"rank {rank} owns dofs {missing[:5].tolist()} that none of its elements touches")
-        self.coordinates = nodes[self.owned[::partition.dim] // partition.dim]  # owned nodes, PETSc order
+        blocks = self.owned[::partition.dim] // partition.dim
+        self.coordinates = nodes[blocks[blocks < nodes.shape[0]]]  # owned nodes (not multipliers), PETSc order
         self.owned_mask = np.zeros(self.n, dtype=np.bool_)
         self.owned_mask[self.owned] = True
         self.lgmap = PETSc.LGMap().create(self.local_petsc, comm=comm)

@@ -60,8 +60,9 @@ class DistributedModel(Model):
 
     def __post_init__(self) -> None:
         assert self.partition is not None and self.comm is not None and self.nodes is not None
-        if any(g.n_extra for g in self.groups):
-            raise ValueError("a distributed model takes no extra unknowns (rigid-plastic multipliers)")
+        if self.number_extras() != self.partition.n_dofs:  # the multipliers numbered over every rank's points
+            raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {self.number_extras()}: "
+                             "its extra dofs (rigid-plastic multipliers) are not partitioned")
         touched = [g.dofs.ravel() for g in self.groups]
         self.layout = Layout(self.comm, self.partition, self.rank,
                              np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)

@@ -115,7 +115,7 @@ def joint_case() -> dict:
     return case
 
 
-def band_case(tracking: str = "local", max_steps: int = 66) -> dict:
+def band_case(tracking: str = "local", max_steps: int = 66, element: str = "quad4") -> dict:
     """An embedded shear band (tests/test_crack_tracking.py) on 12 x 24 quads under path control: the
     cells localize one after the other from the weak seed, each continuing the crack from the tip of
     its neighbour ("local"; "nonlocal": in the direction of the stress averaged around the tip over
@@ -123,8 +123,8 @@ def band_case(tracking: str = "local", max_steps: int = 66) -> dict:
     from test_crack_tracking import H, W
     from test_crack_tracking import band_case as tracked
 
-    mesh = {"kind": "block", "element": "quad4", "width": W, "height": H, "nx": 12, "ny": 24,
-            "inclusion": [0.0, 0.0067, 0.0034, 0.0167]}
+    mesh = {"kind": "block", "element": element, "width": W, "height": H, "nx": 12, "ny": 24,
+            "inclusion": [0.0, 0.0067, 0.0034, 0.0167], **({"thickness": 0.01, "nz": 1} if element == "hex8" else {})}
     case = tracked(mesh, {"tracking": tracking, **({"tracking_length": 0.01} if tracking == "nonlocal" else {})})
     case["loading"]["max_steps"] = max_steps
     return case
@@ -213,6 +213,8 @@ CASES = {
     "band_none": lambda: band_case("none", 43),
     "band_nonlocal": lambda: band_case("nonlocal"),
     "joint_2d_cracks": joint_2d_case,
+    # the band tracked through one layer of hexahedra of a general 3D body (3D crack fronts across ranks)
+    "band_3d_local": lambda: band_case("local", 60, element="hex8"),
     # the path controls whose measures are dot products over every rank's dofs
     "bar_arc_length": lambda: bar_case("arc_length"),
     "bar_energy": lambda: bar_case("energy"),

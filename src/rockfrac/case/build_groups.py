@@ -118,10 +118,9 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         raise CaseError(f"{path}: [embedded]: embedded cracks in a general 3D body need hex8 cells; these are "
                         f"{mesh.cell_type} (in tetrahedra the sliding of a cut plane does not converge yet): mesh "
                         "the drucker_prager regions with hexahedra, or remove [embedded]")
-    if emb is not None and general and emb.tracking != "none":
-        raise CaseError(f"{path}: [embedded] tracking = '{emb.tracking}': crack paths are followed in 2D meshes; "
-                        f"in a general 3D body ({mesh.cell_type} cells) every cell opens on its own plane through "
-                        "its centroid: use tracking = 'none'")
+    if emb is not None and general and emb.tracking == "nonlocal":
+        raise CaseError(f"{path}: [embedded] tracking = 'nonlocal': the nonlocal stress at a crack tip is for 2D "
+                        f"meshes; in a general 3D body ({mesh.cell_type} cells) use tracking = 'local' or 'none'")
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
@@ -149,10 +148,11 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
             g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu, region=region, cell_ids=cells)
         groups.append(g)
 
-    embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and g.dim == 2]
+    # one registry for the 2D groups, one for those of a general 3D body (crack paths cross regions)
+    embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and (g.dim == 2 or general)]
     share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded], exchange)
     for g in groups:  # a plane-strain hex8 group: a registry of its own (its onsets' search over the ranks)
-        if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2:
+        if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2 and not general:
             share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
     if emb is not None and emb.cracks:
         if general:

@@ -31,7 +31,7 @@ MESH_KEYS = {  # keys of [mesh] beyond kind, element, width, height, per kind
     MeshKind.specimen: {"crack", "crack_angle", "nx", "ny", "thickness", "nz"},
     MeshKind.gmsh: {"file"},
     MeshKind.grains: {"n_grains", "radius_min", "radius_max", "seed", "element_size"},
-    MeshKind.block: {"nx", "ny", "inclusion"},
+    MeshKind.block: {"nx", "ny", "inclusion", "thickness", "nz"},
 }
 OPTIONAL_MESH_KEYS = set().union(*MESH_KEYS.values())
 
@@ -45,12 +45,13 @@ class MeshSection(_Section):
     gmsh: a .msh file (2D: tri3 or quad4; 3D, in general 3D: tet4 or hex8); physical groups name
     regions and boundaries (in 3D, physical surfaces the faces loads act on).
     grains: n_grains circular stiff grains in a matrix (regions "grains", "matrix"), made by Gmsh.
-    block: a W x H nx x ny grid, with an optional weak inclusion box (regions "weak", "bulk").
+    block: a W x H nx x ny grid, with an optional weak inclusion box (regions "weak", "bulk"); element =
+    "hex8": nx x ny x nz hexahedra of thickness T (z), a general 3D body (the inclusion through the thickness).
     Every kind provides the boundary groups bottom, top, left, right and bottom_left.
     """
 
     kind: MeshKind = Field(MeshKind.specimen, strict=False, description="'specimen', 'gmsh', 'grains' or 'block'")
-    element: ElementType = Field(ElementType.quad4, strict=False, description="'tri3', 'quad4' (2D) or 'hex8' (3D, plane strain)")
+    element: ElementType = Field(ElementType.quad4, strict=False, description="'tri3', 'quad4' (2D) or 'hex8' (3D: plane strain in the specimen, general in a block)")
     width: Length = Field(0.04, description="specimen width W [m]")
     height: Length = Field(0.08, description="specimen height H [m]")
     thickness: Length | None = Field(None, description="hex8 only: thickness T [m] (default 0.08)")
@@ -78,8 +79,8 @@ class MeshSection(_Section):
                              f"(its keys: {', '.join(sorted(allowed))})")
         if self.kind is MeshKind.gmsh and self.file is None:
             raise ValueError("kind = 'gmsh' needs file (the .msh file)")
-        if self.element is ElementType.hex8 and self.kind is not MeshKind.specimen:
-            raise ValueError("element = 'hex8' is for kind = 'specimen' (a gmsh file brings its own cells)")
+        if self.element is ElementType.hex8 and self.kind not in (MeshKind.specimen, MeshKind.block):
+            raise ValueError("element = 'hex8' is for kind = 'specimen' or 'block' (a gmsh file brings its own cells)")
         if self.element is ElementType.hex8:
             if self.crack:
                 raise ValueError("element = 'hex8' cannot carry a cohesive crack (CSEs are 2D): use "
@@ -126,6 +127,9 @@ class MeshSection(_Section):
                                            "radius_max": self.radius_max or w / 12,
                                            "seed": self.seed if self.seed is not None else 0,
                                            "element_size": self.element_size or w / 40})
+        if k is MeshKind.block and self.element is ElementType.hex8:
+            return self.model_copy(update={"nx": self.nx or 1, "ny": self.ny or 1, "nz": self.nz or 1,
+                                           "thickness": self.thickness or 0.08})
         if k is MeshKind.block:
             return self.model_copy(update={"nx": self.nx or 1, "ny": self.ny or 1})
         return self

@@ -304,6 +304,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             self.segments[e] = surface_segment(self.x[e], n[:2], xc)
             if self._paths is not None:  # the crack-path registry's table (a shared registry)
                 self._paths.record(self._global(e), self.segments[e], n)
+        elif general:
+            if self._paths is not None:  # the crack-path registry's table: a point of the plane
+                self._paths.record(self._global(e), xc.copy(), n)
         elif self.x.shape[1] == 8 and abs(n[2]) <= 1e-12 and np.ptp(self.x[e, :4, 2]) <= 1e-12 * np.ptp(self.x[e]):
             self.sections[e] = surface_segment(self.x[e, :4, :2], n[:2], xc[:2])  # plane strain: the z face's trace
         w = self.wdet[e] / self.wdet[e].sum()

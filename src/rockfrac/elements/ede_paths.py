@@ -9,6 +9,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from rockfrac.elements import ede_kernel as K
+from rockfrac.elements.ede_planes import EDGES, plane_polygons
 from rockfrac.laws.bifurcation_plane import MAX_MINIMA, minima_plane_strain
 
 
@@ -40,6 +41,11 @@ def _band(n: np.ndarray) -> float:
     return a + math.pi if a <= -0.5 * math.pi else a
 
 
+# the sides of a 3D cell by its node count (VTK order): a hexahedron's six faces
+SIDES = {8: np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])}
+CELL_OF_NODES = {8: "hex8", 4: "tet4"}
+
+
 class Exchange(Protocol):
     """How the ranks of a distributed model share what each holds (rockfrac.model.Model.allgather)."""
 
@@ -54,7 +60,8 @@ class Alone:
 
 
 class CrackPaths:
-    """Crack paths across the EDE groups of a model (2D): cell adjacency over the global cell
+    """Crack paths across the EDE groups of a model (2D, and hexahedra of a general 3D body): cell
+    adjacency (shared edges; in 3D shared faces) over the global cell
     numbering, the cut state of every cell whatever its group (and, on several MPI ranks, whatever
     its rank), the number of cracks started.
 
@@ -84,41 +91,55 @@ class CrackPaths:
         for k, g in enumerate(groups):
             self.owner[g.cell_ids, 0], self.owner[g.cell_ids, 1] = k, np.arange(g.cell_ids.size)
         self.cut = np.zeros(n_cells, dtype=bool)  # the table of cut cells (every rank's)
-        self.segment = np.full((n_cells, 2, 2), np.nan)  # their surfaces clipped to the cells [m]
+        self.segment = np.full((n_cells, 2, 2), np.nan)  # 2D: their surfaces clipped to the cells [m]
+        self.anchor = np.full((n_cells, 3), np.nan)  # 3D: a point of their planes [m]
         self.normal = np.zeros((n_cells, 3))
         self.centres = [g.x[..., :2].mean(axis=1) for g in groups]  # own cell centroids per group [m]
-        self.nbr: dict[int, list[tuple[int, int, int]]] = {}
+        self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes)
         gids = np.concatenate([i for i, _ in full] + [np.zeros(0, dtype=np.int64)])
         if gids.size == 0:
             return
         conn = np.vstack([c for _, c in full if c.size])
-        n = conn.shape[1]
-        pairs = np.stack([conn, np.roll(conn, -1, axis=1)], axis=-1).reshape(-1, 2)
-        owner = np.repeat(gids, n)
+        self.cell_nodes = np.full((n_cells, conn.shape[1]), -1, dtype=np.int64)  # every EDE cell's nodes
+        self.cell_nodes[gids] = conn
+        sides = SIDES.get(conn.shape[1]) if nodes.shape[1] == 3 else None  # 3D: faces; 2D: edges
+        if sides is None:
+            sides = np.stack([np.arange(conn.shape[1]), np.roll(np.arange(conn.shape[1]), -1)], axis=1)
+        pairs = conn[:, sides].reshape(-1, sides.shape[1])
+        owner = np.repeat(gids, sides.shape[0])
         key = np.sort(pairs, axis=1)
-        order = np.lexsort((key[:, 1], key[:, 0]))
+        order = np.lexsort(key.T[::-1])
         ks = key[order]
         for i in np.flatnonzero(np.all(ks[1:] == ks[:-1], axis=1)):  # once, at set-up
             c1, c2 = int(owner[order[i]]), int(owner[order[i + 1]])
-            a, b = int(ks[i, 0]), int(ks[i, 1])
-            self.nbr.setdefault(c1, []).append((c2, a, b))
-            self.nbr.setdefault(c2, []).append((c1, a, b))
+            shared = tuple(int(v) for v in ks[i])
+            self.nbr.setdefault(c1, []).append((c2, shared))
+            self.nbr.setdefault(c2, []).append((c1, shared))
 
     def _cell(self, gcell: int):
         g, local = self.owner[gcell]
         return (None, -1) if g < 0 else (self.groups[g], int(local))
 
     # -- the table of cut cells -------------------------------------------------------------------
-    def record(self, gcell: int, segment: np.ndarray, normal: np.ndarray) -> None:
-        """Enter a cut cell's surface in the table."""
+    def record(self, gcell: int, surface: np.ndarray, normal: np.ndarray) -> None:
+        """Enter a cut cell's surface in the table: its segment (2, 2) in 2D, a point of its plane
+        (3,) in 3D [m]."""
         self.cut[gcell] = True
-        self.segment[gcell] = segment
+        if np.shape(surface) == (3,):
+            self.anchor[gcell] = surface
+        else:
+            self.segment[gcell] = surface
         self.normal[gcell] = normal
+
+    @staticmethod
+    def _surface(g, local):
+        """A group's record of its cut cells' surfaces: segments (2D), plane points (3D)."""
+        return g.segments[local] if g.dim == 2 else g.anchor[local]
 
     def announce(self, gcell: int) -> None:
         """Every rank: enter the cut of cell gcell as its owner holds it (a collective call)."""
         g, local = self._cell(gcell)
-        mine = None if g is None else (g.segments[local].copy(), g.e_state[local, K.E_N:K.E_N + 3].copy())
+        mine = None if g is None else (self._surface(g, local).copy(), g.e_state[local, K.E_N:K.E_N + 3].copy())
         held = [v for v in self.exchange.allgather(mine) if v is not None]
         if len(held) != 1:
             raise RuntimeError(f"cell {gcell} is held by {len(held)} ranks, not one")
@@ -129,13 +150,18 @@ class CrackPaths:
         mine = []
         for g in self.groups:
             loc = np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0)
-            mine.append((g.cell_ids[loc], g.segments[loc], g.e_state[loc, K.E_N:K.E_N + 3]))
+            mine.append((g.cell_ids[loc], self._surface(g, loc), g.e_state[loc, K.E_N:K.E_N + 3]))
         self.cut[:] = False
         self.segment[:] = np.nan
+        self.anchor[:] = np.nan
         self.normal[:] = 0.0
         for part in self.exchange.allgather(mine):
-            for ids, seg, normal in part:
-                self.cut[ids], self.segment[ids], self.normal[ids] = True, seg, normal
+            for ids, surface, normal in part:
+                self.cut[ids], self.normal[ids] = True, normal
+                if surface.ndim == 2 and surface.shape[1] == 3:
+                    self.anchor[ids] = surface
+                else:
+                    self.segment[ids] = surface
         self.stale = False
 
     def current(self) -> None:
@@ -148,11 +174,15 @@ class CrackPaths:
         return bool(self.cut[gcell])
 
     def cut_neighbours(self, gcell: int) -> list[int]:
-        return [c for c, _, _ in self.nbr.get(gcell, []) if self.cut[c]]
+        return [c for c, _ in self.nbr.get(gcell, []) if self.cut[c]]
 
     def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
-        """(point, neighbour normal) where a cut neighbour's surface ends on the edge shared with gcell."""
-        for c, a, b in self.nbr.get(gcell, []):
+        """(point, neighbour normal) where a cut neighbour's surface ends on the side shared with
+        gcell: in 2D the end of its segment on the shared edge; in 3D the middle of the edge its
+        polygon leaves on the shared face (the crack front there)."""
+        if self.nodes.shape[1] == 3:
+            return self._tip_3d(gcell)
+        for c, (a, b) in self.nbr.get(gcell, []):
             if not self.cut[c]:
                 continue
             xa, xb = self.nodes[a, :2], self.nodes[b, :2]
@@ -164,11 +194,24 @@ class CrackPaths:
                     return p.copy(), self.normal[c].copy()
         return None
 
+    def _tip_3d(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
+        for c, face in self.nbr.get(gcell, []):
+            if not self.cut[c]:
+                continue
+            conn = self.cell_nodes[c]
+            verts, ends, _ = plane_polygons(self.nodes[conn][None], EDGES[CELL_OF_NODES[conn.shape[0]]],
+                                            self.anchor[c][None], self.normal[c][None])
+            ok = np.isfinite(verts[0]).all(axis=1)
+            on = ok & np.isin(conn[np.where(ok[:, None], ends[0], 0)], face).all(axis=1)
+            if on.sum() >= 2:
+                return verts[0, on].mean(axis=0), self.normal[c].copy()
+        return None
+
     def tip_cells_global(self, k: int) -> set[int]:
         """Global ids of the uncut cells of group k (on any rank) at a crack tip."""
         out = set()
         for gcell in np.flatnonzero(self.cut).tolist():
-            for c, _, _ in self.nbr.get(gcell, []):
+            for c, _ in self.nbr.get(gcell, []):
                 if self.group_of[c] == k and not self.cut[c] and c not in out and self.tip(c) is not None:
                     out.add(c)
         return out

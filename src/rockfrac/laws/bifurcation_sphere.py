@@ -179,13 +179,14 @@ def _sphere_candidates(c, ce, n_polar, n_azimuth, cand):
     return count
 
 
-@parallel_kernel(cost=1.2e-5)  # s per item, one thread (an estimate: 3x the plane-strain screen's normals)
+@parallel_kernel(cost=4e-5)  # s per item, one thread (an estimate: the grid, then a Newton refinement)
 def screen_sphere(sigma, p, ce, n_polar, n_azimuth):
-    """Min over a grid of unit normals of det A / det A^e (eq. 7-8, f and g of the Drucker-Prager law
-    at each stress), for many points: sigma (n, 6) [Pa] -> (n,). The grid covers the upper
-    hemisphere (n and -n are one band): n_polar levels over (0, pi/2], n_azimuth over [0, 2 pi). A
-    coarse bound from above of the true minimum: refine with localization_3d where it is small. The
-    normals and det A^e(n) are the same at every point: computed once."""
+    """Min of det A / det A^e (eq. 7-8, f and g of the Drucker-Prager law at each stress) over the unit
+    normals, for many points: sigma (n, 6) [Pa] -> (n,). A grid over the upper hemisphere (n and -n
+    are one band: n_polar levels over (0, pi/2], n_azimuth over [0, 2 pi)), then the grid's lowest
+    normal refined by Newton on the sphere (:func:`_refine_sphere`): the minimum of that basin, a
+    bound from above of the global one (another basin may be lower between grid points: refine
+    with localization_3d where it is small). The normals and det A^e(n) are computed once."""
     n = sigma.shape[0]
     out = np.empty(n)
     m = n_polar * n_azimuth
@@ -209,9 +210,11 @@ def screen_sphere(sigma, p, ce, n_polar, n_azimuth):
         ci = np.empty((3, 3))
         for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
             c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
-            best = np.inf
+            best, k_best = np.inf, 0
             for k in range(m):
                 _acoustic(c, normals[k], ai)
-                best = min(best, _cofactor(ai, ci) / det_e[k])
-            out[i] = best
+                r = _cofactor(ai, ci) / det_e[k]
+                if r < best:
+                    best, k_best = r, k
+            out[i] = min(best, _ratio(c, ce, _refine_sphere(c, ce, normals[k_best])))  # the grid's basin, refined
     return out

@@ -89,11 +89,14 @@ def _boundary_groups(nodes: np.ndarray, quads: np.ndarray, width: float, height:
 
 
 def hex_specimen(width: float = 0.04, height: float = 0.08, thickness: float = 0.08,
-                 nx: int = 1, ny: int = 1, nz: int = 1) -> Mesh:
+                 nx: int = 1, ny: int = 1, nz: int = 1,
+                 inclusion: tuple[float, float, float, float] | None = None) -> Mesh:
     """W x H x T block of nx x ny x nz trilinear hexahedra (x across, y up, z out of plane).
 
     Node sets: bottom, top, left, right, back (z = 0), front (z = T), bottom_left (the line
     y = 0, x = 0); face sets left, right (outward normals -x, +x) for the confining pressure.
+    Regions: "bulk", and with ``inclusion`` = (x0, y0, x1, y1) [m] "weak", the cells whose centroid
+    lies in that box (through the thickness).
     """
     xs, ys, zs = (np.linspace(0.0, L, n + 1) for L, n in ((width, nx), (height, ny), (thickness, nz)))
     z, y, x = np.meshgrid(zs, ys, xs, indexing="ij")
@@ -113,5 +116,13 @@ def hex_specimen(width: float = 0.04, height: float = 0.08, thickness: float = 0
     # faces at x = 0 and x = W, ordered so that (x1 - x0) x (x3 - x0) points outward
     left = np.stack([ids[:-1, :-1, 0], ids[1:, :-1, 0], ids[1:, 1:, 0], ids[:-1, 1:, 0]], axis=-1).reshape(-1, 4)
     right = np.stack([ids[:-1, :-1, -1], ids[:-1, 1:, -1], ids[1:, 1:, -1], ids[1:, :-1, -1]], axis=-1).reshape(-1, 4)
+    regions = {}
+    if inclusion is not None:
+        x0, y0, x1, y1 = inclusion
+        c = nodes[cells].mean(axis=1)
+        inside = (c[:, 0] >= x0) & (c[:, 0] <= x1) & (c[:, 1] >= y0) & (c[:, 1] <= y1)
+        if not inside.any():
+            raise ValueError(f"the inclusion {tuple(inclusion)} holds no cell centroid; enlarge it or refine the grid")
+        regions = {"weak": np.flatnonzero(inside), "bulk": np.flatnonzero(~inside)}
     return Mesh(nodes=nodes, cells=cells, cell_type="hex8", node_sets=node_sets,
-                face_sets={"left": left, "right": right})
+                face_sets={"left": left, "right": right}, regions=regions)

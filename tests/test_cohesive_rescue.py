@@ -90,11 +90,16 @@ FAILED_BEFORE = [
 ]
 
 
+def _trial(case):
+    """(parameters, jump increment [m], eps of the old state) of a FAILED_BEFORE case."""
+    kw, k, eps, mag, deg = case
+    du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    return CohesiveLaw(**kw, kn=k, kt=k).as_array(), du, eps
+
+
 @pytest.mark.parametrize("case", FAILED_BEFORE)
 def test_rescued_return_converges_to_the_backward_euler_solution(case):
-    kw, k, eps, mag, deg = case
-    p = CohesiveLaw(**kw, kn=k, kt=k).as_array()
-    du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    p, du, eps = _trial(case)
     st, s_new, _ = _ep(du, p, eps)
     assert st == 1
     assert _residual(s_new, du, p, eps) < 1e-9
@@ -104,9 +109,7 @@ def test_rescued_return_converges_to_the_backward_euler_solution(case):
 
 @pytest.mark.parametrize("case", FAILED_BEFORE[:3])
 def test_rescued_return_tangent_against_central_differences(case):
-    kw, k, eps, mag, deg = case
-    p = CohesiveLaw(**kw, kn=k, kt=k).as_array()
-    du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    p, du, eps = _trial(case)
     st, _, d = _ep(du, p, eps)
     assert st == 1
     h = 1e-6 * np.linalg.norm(du)

@@ -190,3 +190,28 @@ def det_ratios(c, ce, normals):
     for i in range(normals.shape[0]):
         out[i] = _ratio(c, ce, normals[i])
     return out
+
+
+@nb.njit(cache=True)
+def lowest_ratio(c, normals, det_e, a, cof):
+    """The lowest det A(n) / det A^e(n) over the given normals (k, 3), with det A^e (k,) computed
+    once for them, and the index of its normal: (ratio, k). a, cof: (3, 3) scratch."""
+    best, k_best = np.inf, 0
+    for k in range(normals.shape[0]):
+        _acoustic(c, normals[k], a)
+        r = _cofactor(a, cof) / det_e[k]
+        if r < best:
+            best, k_best = r, k
+    return best, k_best
+
+
+@nb.njit(cache=True)
+def elastic_dets(ce, normals):
+    """det A^e(n) (k,) of the elastic acoustic tensor at each of the normals (k, 3)."""
+    out = np.empty(normals.shape[0])
+    a = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    for k in range(normals.shape[0]):
+        _acoustic(ce, normals[k], a)
+        out[k] = _cofactor(a, cof)
+    return out

@@ -16,6 +16,7 @@ from rockfrac.laws.acoustic import (
     _ratio,
     _ratio3,
     _ratio_grad3,
+    lowest_ratio,
 )
 from rockfrac.threads import parallel_kernel
 
@@ -115,12 +116,7 @@ def screen_plane_strain(sigma, p, ce, n_sweep):
         ci = np.empty((3, 3))
         for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
             c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
-            best = np.inf
-            for k in range(n_sweep):
-                _acoustic(c, normals[k], ai)
-                r = _cofactor(ai, ci) / det_e[k]
-                best = min(best, r)
-            out[i] = best
+            out[i] = lowest_ratio(c, normals, det_e, ai, ci)[0]
     return out
 
 

@@ -9,7 +9,7 @@ import numba as nb
 import numpy as np
 
 from rockfrac.laws import drucker_prager as dp
-from rockfrac.laws.acoustic import _acoustic, _cofactor, _ratio, _ratio_grad
+from rockfrac.laws.acoustic import _ratio, _ratio_grad, elastic_dets, lowest_ratio
 from rockfrac.threads import parallel_kernel
 
 # --------------------------------------------------------------------------------------------
@@ -189,32 +189,19 @@ def screen_sphere(sigma, p, ce, n_polar, n_azimuth):
     with localization_3d where it is small). The normals and det A^e(n) are computed once."""
     n = sigma.shape[0]
     out = np.empty(n)
-    m = n_polar * n_azimuth
-    normals = np.zeros((m, 3))
-    det_e = np.empty(m)
-    a = np.empty((3, 3))
-    cof = np.empty((3, 3))
+    normals = np.zeros((n_polar * n_azimuth, 3))
     for i in range(n_polar):
         th = 0.5 * math.pi * (i + 1.0) / n_polar
         for j in range(n_azimuth):
             ph = 2.0 * math.pi * j / n_azimuth
-            k = i * n_azimuth + j
-            normals[k, 0] = math.sin(th) * math.cos(ph)
-            normals[k, 1] = math.sin(th) * math.sin(ph)
-            normals[k, 2] = math.cos(th)
-            _acoustic(ce, normals[k], a)
-            det_e[k] = _cofactor(a, cof)
+            normals[i * n_azimuth + j] = (math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th))
+    det_e = elastic_dets(ce, normals)
     n_chunks = max(1, min(n, 256))
     for ch in nb.prange(n_chunks):
         ai = np.empty((3, 3))
         ci = np.empty((3, 3))
         for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
             c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
-            best, k_best = np.inf, 0
-            for k in range(m):
-                _acoustic(c, normals[k], ai)
-                r = _cofactor(ai, ci) / det_e[k]
-                if r < best:
-                    best, k_best = r, k
+            best, k_best = lowest_ratio(c, normals, det_e, ai, ci)
             out[i] = min(best, _ratio(c, ce, _refine_sphere(c, ce, normals[k_best])))  # the grid's basin, refined
     return out

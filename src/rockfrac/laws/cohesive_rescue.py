@@ -42,6 +42,21 @@ MIN_GROWTH = 1.0e-8  # smallest continuation step in lambda
 
 
 @nb.njit(cache=True)
+def _bracketed_step(x, f, df, lo, hi):
+    """One safeguarded Newton step on an increasing residual f(x) whose root is bracketed by [lo, hi]:
+    the bracket shrunk by the sign of f, then the Newton point if it is inside, else the midpoint.
+    Returns (x_new, lo, hi, converged)."""
+    if f > 0.0:
+        hi = x
+    else:
+        lo = x
+    x_new = x - f / df if df > 0.0 else 0.5 * (lo + hi)
+    if not (lo < x_new < hi):
+        x_new = 0.5 * (lo + hi)
+    return x_new, lo, hi, abs(x_new - x) <= 4.0e-16 * abs(x) or hi - lo <= 4.0e-16 * abs(hi)
+
+
+@nb.njit(cache=True)
 def tangential_traction(tr, kappa, a_g):
     """|T_t| [Pa] solving ``t + kappa t / sqrt(t^2 + a_g^2) = tr`` for tr >= 0, kappa >= 0, a_g >= 0,
     with g_t = t / sqrt(t^2 + a_g^2) and d|T_t|/d kappa [m]: (t, g, dt_dkappa).
@@ -60,19 +75,9 @@ def tangential_traction(tr, kappa, a_g):
         t = tr
         for _ in range(ROOT_ITER):
             r = math.sqrt(t * t + a_g * a_g)
-            phi = t + kappa * t / r - tr
-            if phi > 0.0:
-                hi = t
-            else:
-                lo = t
-            dphi = 1.0 + kappa * a_g * a_g / (r * r * r)
-            t_new = t - phi / dphi
-            if not (lo < t_new < hi):
-                t_new = 0.5 * (lo + hi)
-            if abs(t_new - t) <= 4.0e-16 * t or hi - lo <= 4.0e-16 * hi:
-                t = t_new
+            t, lo, hi, done = _bracketed_step(t, t + kappa * t / r - tr, 1.0 + kappa * a_g * a_g / (r * r * r), lo, hi)
+            if done:
                 break
-            t = t_new
         r = math.sqrt(t * t + a_g * a_g)
         return t, t / r, -(t / r) / (1.0 + kappa * a_g * a_g / (r * r * r))
     # t <= a_g: psi(g) = a_g g / sqrt(1 - g^2) + kappa g - tr, convex increasing on [0, 1/sqrt(2)]
@@ -80,19 +85,9 @@ def tangential_traction(tr, kappa, a_g):
     g = min(tr / (a_g + kappa), hi)
     for _ in range(ROOT_ITER):
         q = math.sqrt(1.0 - g * g)
-        psi = a_g * g / q + kappa * g - tr
-        if psi > 0.0:
-            hi = g
-        else:
-            lo = g
-        dpsi = a_g / (q * q * q) + kappa
-        g_new = g - psi / dpsi
-        if not (lo < g_new < hi):
-            g_new = 0.5 * (lo + hi)
-        if abs(g_new - g) <= 4.0e-16 * max(g, 1.0e-300) or hi - lo <= 4.0e-16 * hi:
-            g = g_new
+        g, lo, hi, done = _bracketed_step(g, a_g * g / q + kappa * g - tr, a_g / (q * q * q) + kappa, lo, hi)
+        if done:
             break
-        g = g_new
     q = math.sqrt(1.0 - g * g)
     dg_dk = -g / (a_g / (q * q * q) + kappa)
     return a_g * g / q, g, a_g / (q * q * q) * dg_dk
@@ -138,17 +133,9 @@ def bracketed_frozen_return(x, du, t_old, comp, p):
     dg = 0.5 * (lo + hi)
     for _ in range(ROOT_ITER):
         f, df, _, _ = _frozen_yield(dg, tt_tr, tn_tr, kt, kn, chi, c, tphi, tpsi)
-        if f > 0.0:
-            lo = dg
-        else:
-            hi = dg
-        dg_new = dg - f / df if df < 0.0 else 0.5 * (lo + hi)
-        if not (lo < dg_new < hi):
-            dg_new = 0.5 * (lo + hi)
-        if abs(dg_new - dg) <= 4.0e-16 * dg or hi - lo <= 4.0e-16 * hi:
-            dg = dg_new
+        dg, lo, hi, done = _bracketed_step(dg, -f, -df, lo, hi)  # F decreases in dgamma
+        if done:
             break
-        dg = dg_new
     _, _, tt, tn = _frozen_yield(dg, tt_tr, tn_tr, kt, kn, chi, c, tphi, tpsi)
     x[0], x[1], x[4] = tt, tn, dg
     return True

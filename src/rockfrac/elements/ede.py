@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from rockfrac.elements import ede_kernel as K
-from rockfrac.elements.ede_cells import EmbeddedCells
+from rockfrac.elements.ede_cells import EmbeddedCells, shear_directions
 from rockfrac.elements.ede_paths import (
     CrackPaths,
     Onset,
@@ -313,10 +313,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         tr = np.einsum("q,qi->i", w, self.sigma[e])  # volume-averaged committed stress
         sig = np.array([[tr[0], tr[3], tr[5]], [tr[3], tr[1], tr[4]], [tr[5], tr[4], tr[2]]])
         if general:  # t along the shear traction on the surface (frozen with n; q = |shear| >= 0)
-            shear = sig @ n - (n @ sig @ n) * n
-            size = float(np.linalg.norm(shear))
-            tiny = size <= 1e-12 * max(float(np.abs(sig).max()), 1e-300)
-            t = in_plane_direction(n[None])[0] if tiny else shear / size
+            shear, _, ok = shear_directions(sig[None], n[None])
+            t = shear[0] if ok[0] else in_plane_direction(n[None])[0]
         q, p = t @ sig @ n, n @ sig @ n
         if c_p is None:
             tphi = math.tan(self.surface.phi_p)

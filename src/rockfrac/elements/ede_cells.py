@@ -14,6 +14,16 @@ from rockfrac.laws.drucker_prager_params import DruckerPrager
 from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw, strengths
 
 
+def shear_directions(sigma: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shear traction of stresses sigma (k, 3, 3) [Pa] on planes of unit normals n (k, 3): its
+    direction t (k, 3), magnitude q (k,) [Pa] and where it is defined (q above 1e-12 of the traction)."""
+    traction = np.einsum("cij,cj->ci", sigma, n)
+    shear = traction - np.einsum("ci,ci->c", traction, n)[:, None] * n
+    q = np.linalg.norm(shear, axis=1)
+    ok = q > 1e-12 * np.maximum(np.abs(traction).max(axis=1), 1e-300)
+    return shear / np.where(ok, q, 1.0)[:, None], q, ok
+
+
 class EmbeddedCells(DruckerPragerSolid):
     """The cells of :class:`rockfrac.elements.ede.EmbeddedDruckerPrager` apart from their localization."""
 
@@ -298,15 +308,10 @@ class EmbeddedCells(DruckerPragerSolid):
         cells = np.flatnonzero((s[:, K.E_LOC] == 1.0) & (s[:, K.E_ZETA] == 0.0))
         if not cells.size:
             return
-        n = s[cells, K.E_N:K.E_N + 3]
-        traction = np.einsum("cij,cj->ci", self.averaged_stress(cells), n)
-        shear = traction - np.einsum("ci,ci->c", traction, n)[:, None] * n
-        size = np.linalg.norm(shear, axis=1)
-        ok = size > 1e-12 * np.maximum(np.abs(traction).max(axis=1), 1e-300)
-        cells, shear, size = cells[ok], shear[ok], size[ok]
-        s[cells, K.E_T:K.E_T + 3] = shear / size[:, None]
-        s[cells, K.E_SIGN] = 1.0
-        s[cells, K.E_Q] = size
+        t, q, ok = shear_directions(self.averaged_stress(cells), s[cells, K.E_N:K.E_N + 3])
+        s[cells[ok], K.E_T:K.E_T + 3] = t[ok]
+        s[cells[ok], K.E_SIGN] = 1.0
+        s[cells[ok], K.E_Q] = q[ok]
 
     def surface_polygons(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A general 3D body: where each cut cell's surface cuts it (rockfrac.elements.ede_planes.

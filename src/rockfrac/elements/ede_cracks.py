@@ -117,18 +117,16 @@ def cut_by_plane(groups: list, point: np.ndarray, normal: np.ndarray, c_p: float
     n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
     p0 = np.asarray(point, dtype=float)
     exchange = groups[0].paths.exchange
-    near = []
+    near = []  # per group of this rank: (the nodes' least distance to the plane / cell size, least size)
     for g in groups:
         d = (g.x - p0) @ n  # (n_el, m)
         size = np.cbrt(g.wdet.sum(axis=1))
         crossed = (d.min(axis=1) <= 0.0) & (d.max(axis=1) >= 0.0)
         if crossed.any():
-            near.append(float((np.abs(d[crossed]) / size[crossed, None]).min()))
-            near.append(-float(size[crossed].min()))
-    values = [v for part in exchange.allgather(near) for v in part]
-    gaps, sizes = [v for v in values if v >= 0.0], [-v for v in values if v < 0.0]
-    if gaps and min(gaps) < NODE_TOL:
-        p0 = p0 + 2.0 * NODE_TOL * min(sizes) * n
+            near.append((float((np.abs(d[crossed]) / size[crossed, None]).min()), float(size[crossed].min())))
+    near = [pair for part in exchange.allgather(near) for pair in part]
+    if near and min(gap for gap, _ in near) < NODE_TOL:
+        p0 = p0 + 2.0 * NODE_TOL * min(size for _, size in near) * n
     cut = 0
     for g in groups:
         d = (g.x - p0) @ n

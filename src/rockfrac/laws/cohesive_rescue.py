@@ -32,7 +32,7 @@ import math
 import numba as nb
 import numpy as np
 
-from rockfrac.laws.cohesive_solve import CONVERGED, ST_NO_CONVERGENCE, _newton
+from rockfrac.laws.cohesive_solve import ST_NO_CONVERGENCE, _newton
 from rockfrac.laws.cohesive_surface import _sign, strengths, yield_function
 from rockfrac.laws.cohesive_system import _work_start
 
@@ -216,4 +216,4 @@ def rescue_return(x, du, t_old, t_s, start, en_old, es_old, comp, p, ws, dws, wk
     return ST_NO_CONVERGENCE
 
 
-__all__ = ["CONVERGED", "bracketed_frozen_return", "rescue_return", "tangential_traction"]
+__all__ = ["bracketed_frozen_return", "rescue_return", "tangential_traction"]

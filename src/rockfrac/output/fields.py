@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.ede_planes import MAX_VERTICES, fan_triangles
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
@@ -123,15 +122,11 @@ def _surfaces(built, disp: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | 
         a = g.cells[cells[poly].repeat(3), ends.reshape(-1, 2)[corners, 0]]
         b = g.cells[cells[poly].repeat(3), ends.reshape(-1, 2)[corners, 1]]
         w = where.ravel()[corners][:, None]
-        st = g.e_state[cells]
-        t, n = st[:, K.E_T:K.E_T + 3], st[:, K.E_N:K.E_N + 3]
-        t2 = np.cross(n, t)
-        j = st[:, K.E_J:K.E_J + 3]
-        rec = g.records()
+        rec = g.records()  # the localized cells' in order, with the (t, n x t, n) components
         mine = {"x": verts.reshape(-1, 3)[tri], "u": ((1.0 - w) * disp[a] + w * disp[b]).reshape(-1, 3, 3),
                 "host": g.cell_ids[cells][poly],
-                "jump": np.column_stack([np.einsum("ci,ci->c", j, v) for v in (t, t2, n)])[poly],
-                "traction": np.column_stack([st[:, K.E_Q], np.zeros(cells.size), st[:, K.E_P]])[poly],
+                "jump": np.column_stack([rec["jump_t1"], rec["jump_t2"], rec["jump_n"]])[poly],
+                "traction": np.column_stack([rec["T_t1"], rec["T_t2"], rec["T_n"]])[poly],
                 "c": rec["c"][poly], "tan_phi": rec["tan_phi"][poly],
                 "state": np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8)[poly]}
         order = g.serial_index[cells][poly] * (4 * MAX_VERTICES) + np.arange(poly.size) - np.searchsorted(poly, poly)

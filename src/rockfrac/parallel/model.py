@@ -60,9 +60,10 @@ class DistributedModel(Model):
 
     def __post_init__(self) -> None:
         assert self.partition is not None and self.comm is not None and self.nodes is not None
-        if self.number_extras() != self.partition.n_dofs:  # the multipliers numbered over every rank's points
-            raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {self.number_extras()}: "
-                             "its extra dofs (rigid-plastic multipliers) are not partitioned")
+        n = self.number_extras()  # the multipliers numbered over every rank's points
+        if n != self.partition.n_dofs:
+            raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {n}: its extra dofs "
+                             "(rigid-plastic multipliers) are not partitioned")
         touched = [g.dofs.ravel() for g in self.groups]
         self.layout = Layout(self.comm, self.partition, self.rank,
                              np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)

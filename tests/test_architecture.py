@@ -7,7 +7,7 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "rockfrac"
-LAYERS = ["errors", "values", "files", "_kernel_cache", "threads", "analytic", "mesh", "fem", "laws", "elements",
+LAYERS = ["errors", "values", "files", "_kernel_cache", "compiled", "threads", "analytic", "mesh", "fem", "laws", "elements",
           "model", "solve", "output", "case", "runner", "parallel", "api", "api_laws", "studies", "bifurcation_cli", "cli"]
 
 

@@ -2,20 +2,19 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import math
-
-import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from rockfrac.compiled import kernel
 from rockfrac.elements.base import ElementGroup
 from rockfrac.fem.assembly import Pattern, scatter_matrix, scatter_vector
 
 
-@nb.njit(cache=True, fastmath={"reassoc"})
+@kernel(fastmath={"reassoc"})
 def serial_dot(x: np.ndarray, y: np.ndarray) -> float:
     """x . y on one thread (reassociated: the compiler vectorizes the sum, as BLAS does).
 

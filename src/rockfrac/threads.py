@@ -24,6 +24,8 @@ from typing import Any
 
 import numba as nb
 
+from rockfrac.compiled import OPTIONS
+
 SERIAL_WORK = 4.0e-3  # s of one-thread work below which a call stays on the calling thread
 FORCE: str | None = None  # "serial" | "parallel": every kernel on that path (tests and benchmarks)
 
@@ -50,8 +52,8 @@ class ParallelKernel:
         self.cost = cost  # s per item on one thread (measured: benchmarks/kernels.py --threads-rule)
         self.items_arg = items_arg
         self.below = max(1, int(SERIAL_WORK / cost))
-        self.serial: Any = nb.njit(cache=cache)(_renamed(func, "__serial"))
-        self.parallel: Any = nb.njit(cache=cache, parallel=True)(func)
+        self.serial: Any = nb.njit(cache=cache, **OPTIONS)(_renamed(func, "__serial"))
+        self.parallel: Any = nb.njit(cache=cache, parallel=True, **OPTIONS)(func)
         self.__doc__ = func.__doc__
         self.__name__ = func.__name__
         self.__qualname__ = func.__qualname__

@@ -33,6 +33,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner
 from rockfrac.elements.plastic_solid import (
     dp_element_into,
     element_scratch,
@@ -69,7 +70,7 @@ ST_NOT_UNIQUE = -2  # dr/d dzeta = 0: the jump does not enter the local equation
 ST_DP_FAIL = -3
 
 
-@nb.njit(cache=True)
+@inner
 def _sym_jump(v, g, e6):
     """Voigt strain (engineering shear) of sym(v x g)."""
     e6[0] = v[0] * g[0]
@@ -80,7 +81,7 @@ def _sym_jump(v, g, e6):
     e6[5] = v[0] * g[2] + v[2] * g[0]
 
 
-@nb.njit(cache=True)
+@inner
 def _traction_weights(a, b, w6):
     """w6 such that w6 . sigma6 = a . sigma . b (stress-like Voigt)."""
     w6[0] = a[0] * b[0]
@@ -91,7 +92,7 @@ def _traction_weights(a, b, w6):
     w6[5] = a[0] * b[2] + a[2] * b[0]
 
 
-@nb.njit(cache=True)
+@inner
 def _dot6(a, b):
     s = 0.0
     for i in range(6):
@@ -99,7 +100,7 @@ def _dot6(a, b):
     return s
 
 
-@nb.njit(cache=True)
+@inner
 def _localized(grads, wdet, ue, eps_p, ce, gradf, e_old, law, dz, slide, stick, sigma, e_new, fe, ke, h_vec):
     """One localized cell at the jump increment dz (module doc): stresses, condensed fe and ke,
     new EDE state; h_vec (nd,) receives dr/dd. Returns (status, r, k = dr/d dzeta, dz used)."""
@@ -270,7 +271,7 @@ def ede_blocks(grads, wdet, ue, dp_old, dp_p, ce, e_old, gradf, law, dz, slide, 
                       slide, stick, dp_new, sigma, e_new, fe, ke, status, r_out, k_out, h_out)
 
 
-@nb.njit(cache=True)
+@inner
 def _ede_cell(e, grads, wdet, ue, dp_old, dp_p, dp_k, dp_mu, dp_ce, scratch, ce, e_old, gradf, law, dz, slide, stick,
               dp_new, sigma, e_new, fe, ke, status, r_out, k_out, h_out):
     """Cell e of :func:`ede_blocks` (scratch: :func:`element_scratch`, used by its Drucker-Prager cells)."""

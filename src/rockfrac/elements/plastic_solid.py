@@ -5,6 +5,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.elements.base import Evaluation
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.fem.kinematics import (
@@ -24,21 +25,21 @@ from rockfrac.laws.elastic import isotropic_compliance
 from rockfrac.threads import parallel_kernel
 
 
-@nb.njit(cache=True)
+@inner
 def integrate_point(b, w, sig6, c6, idx, fe, ke, cb):
     """fe += w B^T sigma, ke += w B^T C B on the element's Voigt components idx; cb is scratch (nv, nd)."""
     add_bts(b, w, sig6, idx, fe)
     add_btcb(b, w, c6, idx, cb, ke)
 
 
-@nb.njit(cache=True)
+@inner
 def plane_integrate_point(g, w, sig6, c6, fe, ke, cb):
     """:func:`integrate_point` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
     plane_add_bts(g, w, sig6, fe)
     plane_add_btcb(g, w, c6, np.int64(3), cb, ke)
 
 
-@nb.njit(cache=True)
+@inner
 def element_scratch(n_nodes, dim):
     """Work arrays of :func:`dp_element_into`: B, C B (nv, nd), strain (6,), tangent (6, 6), return-map
     scratch (5, 6), Voigt positions idx (nv,)."""
@@ -53,7 +54,7 @@ def element_scratch(n_nodes, dim):
     return np.empty((nv, nd)), np.empty((nv, nd)), np.empty(6), np.empty((6, 6)), np.empty((5, 6)), idx
 
 
-@nb.njit(cache=True)
+@inner
 def dp_element(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke):
     """One Drucker-Prager cell: return map at its Gauss points, fe (nd,) [N] and ke (nd, nd).
 
@@ -66,7 +67,7 @@ def dp_element(grads, wdet, ue, s_old, p, s_new, sigma, fe, ke):
                            element_scratch(grads.shape[1], grads.shape[2]))
 
 
-@nb.njit(cache=True)
+@inner
 def dp_element_into(grads, wdet, ue, s_old, p, k, mu, ce, s_new, sigma, fe, ke, scratch):
     """:func:`dp_element` with (k, mu) = moduli(p), ce = elastic_matrix(p) and the work arrays of
     :func:`element_scratch` passed in: no allocation per cell, the same arithmetic."""
@@ -92,7 +93,7 @@ def dp_element_into(grads, wdet, ue, s_old, p, k, mu, ce, s_new, sigma, fe, ke, 
     return status
 
 
-@nb.njit(cache=True)
+@inner
 def n_chunks(n):
     """Number of prange chunks over n items: scratch is allocated once per chunk, and 256 chunks
     balance any thread count here (nb.get_num_threads() would stop the kernels being cached)."""
@@ -203,7 +204,7 @@ class DruckerPragerSolid(SolidGroup):
         return float(np.mean(self.state[..., S_MODE] > 0.0))
 
 
-@nb.njit(cache=True)
+@kernel
 def yield_values(sigma, state, p):
     """F at many points (n, 6) with their states (n, N_STATE) [Pa] (set-up checks)."""
     out = np.empty(sigma.shape[0])

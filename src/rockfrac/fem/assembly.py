@@ -8,6 +8,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.threads import parallel_kernel
 
 
@@ -98,7 +99,7 @@ class Pattern:
         return _marked_positions(self.indptr, self.indices, mark)
 
 
-@nb.njit(cache=True)
+@kernel
 def scatter_matrix(data: np.ndarray, slots: np.ndarray, ke: np.ndarray) -> None:
     """data[slots] += ke for element blocks ke (n_el, nd, nd); serial, memory bound."""
     n_el, nd, _ = ke.shape
@@ -108,7 +109,7 @@ def scatter_matrix(data: np.ndarray, slots: np.ndarray, ke: np.ndarray) -> None:
                 data[slots[e, i, j]] += ke[e, i, j]
 
 
-@nb.njit(cache=True)
+@kernel
 def scatter_vector(f: np.ndarray, dofs: np.ndarray, fe: np.ndarray) -> None:
     """f[dofs] += fe for element vectors fe (n_el, nd)."""
     n_el, nd = fe.shape
@@ -124,7 +125,7 @@ def scatter_vector(f: np.ndarray, dofs: np.ndarray, fe: np.ndarray) -> None:
 ROWS_PER_CHUNK = 4096  # rows per prange item of the row passes (one small sort buffer each)
 
 
-@nb.njit(cache=True)
+@kernel
 def _incidence(n, flat, start, nd_of):
     """Per dof the (element, local index) entries that hold it, CSR-like (ptr (n+1,), el, i), and
     the widest row bound: max over dofs of 1 + the sum of the holding elements' dof counts."""
@@ -149,7 +150,7 @@ def _incidence(n, flat, start, nd_of):
     return ptr, el, loc, width.max() if n else 1
 
 
-@nb.njit(cache=True)
+@inner
 def lower_bound(values, lo, hi, x):
     """The first position p in [lo, hi] with values[p] >= x (values[lo:hi] sorted; hi if none)."""
     while lo < hi:
@@ -161,7 +162,7 @@ def lower_bound(values, lo, hi, x):
     return lo
 
 
-@nb.njit(cache=True)
+@inner
 def _sorted_row(r, inc_ptr, inc_el, flat, start, nd_of, buf):
     """The sorted unique columns of row r in buf[:k]; returns k (insertion sort: rows are short)."""
     k = 0
@@ -216,7 +217,7 @@ def _fill_rows(inc_ptr, inc_el, inc_i, flat, start, nd_of, slot_start, width, in
                     slots[slot_start[e] + i * nd + j] = a + lower_bound(buf, 0, k - 1, c)
 
 
-@nb.njit(cache=True)
+@kernel
 def _marked_positions(indptr, indices, mark):
     """(positions of the entries whose row or column is marked, positions of the marked diagonals)."""
     n = indptr.shape[0] - 1

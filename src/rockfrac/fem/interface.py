@@ -11,12 +11,12 @@ inlined, which a function passed at run time could not be).
 
 from __future__ import annotations
 
-import numba as nb
+from rockfrac.compiled import inner
 
 CHUNK = 256  # points per prange chunk (one scratch per chunk)
 
 
-@nb.njit(cache=True)
+@inner
 def pair_blocks_local(r, w, t_t, t_n, d, fe, ke):
     """Force and stiffness of one node pair, dofs (minus x, minus y, plus x, plus y), from the local
     traction (t_t, t_n) and tangent d: global T_g = R^T t, D_g = R^T d R; on scalars, no temporaries."""
@@ -39,7 +39,7 @@ def pair_blocks_local(r, w, t_t, t_n, d, fe, ke):
             ke[2 + i, 2 + j] = k
 
 
-@nb.njit(cache=True)
+@inner
 def multiplier_rows(r, w, t_t, t_n, lam, aug, fi, ki):
     """The rigid-plastic pair's multiplier rows and columns (paper eq. 32-33), after
     :func:`pair_blocks_local` wrote the displacement blocks of the traction T = (t_t, t_n) (local)
@@ -57,7 +57,7 @@ def multiplier_rows(r, w, t_t, t_n, lam, aug, fi, ki):
             ki[4 + a, 4 + b] = kab / aug - (w if a == b else 0.0)
 
 
-@nb.njit(cache=True)
+@inner
 def junction_rows(r, w, eps, lam, t_old_t, t_old_n, fi, ki):
     """Least circulation of a constrained junction pair's multipliers: the perturbed-Lagrangian term
     eps w (lambda - lambda_n) with lambda_n = R^T T_old (see rockfrac.elements.cse_groups.CohesiveRP)."""
@@ -67,20 +67,20 @@ def junction_rows(r, w, eps, lam, t_old_t, t_old_n, fi, ki):
         ki[4 + a, 4 + a] -= eps * w
 
 
-@nb.njit(cache=True)
+@inner
 def local_jump(r, dj):
     """(t, n) components of a global jump (2,)."""
     return r[0, 0] * dj[0] + r[0, 1] * dj[1], r[1, 0] * dj[0] + r[1, 1] * dj[1]
 
 
-@nb.njit(cache=True)
+@inner
 def local_jump_3d(r, v):
     """(t1, t2, n) components of a global vector (3,)."""
     return (r[0, 0] * v[0] + r[0, 1] * v[1] + r[0, 2] * v[2], r[1, 0] * v[0] + r[1, 1] * v[1] + r[1, 2] * v[2],
             r[2, 0] * v[0] + r[2, 1] * v[1] + r[2, 2] * v[2])
 
 
-@nb.njit(cache=True)
+@inner
 def pair_blocks_3d(r, w, s, d, fe, ke):
     """Force (6,) and stiffness (6, 6) of one node pair, dofs (minus xyz, plus xyz), from the local
     traction s[0:3] [Pa] and tangent d (3, 3): T_g = R^T T, K = R^T d R, times the weight w [m^2]."""

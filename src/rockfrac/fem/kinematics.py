@@ -11,6 +11,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.threads import parallel_kernel
 
@@ -78,7 +79,7 @@ def element_gradients(x: np.ndarray, ref: ReferenceElement) -> tuple[np.ndarray,
     return gradients(np.ascontiguousarray(x, dtype=np.float64), ref.shape_gradients(ref.points), ref.weights)
 
 
-@nb.njit(cache=True)
+@kernel
 def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
     """Fill B (n_voigt, n_nodes * dim) from gradients g (n_nodes, dim): eps_reduced = B u_e.
 
@@ -105,7 +106,7 @@ def b_matrix(g: np.ndarray, b: np.ndarray) -> None:
             b[5, c + 2] = g[a, 0]
 
 
-@nb.njit(cache=True)
+@inner
 def add_btcb(b, w, c, idx, cb, ke):
     """ke += w B^T C B at one point: B (nv, nd), C read at (idx[k], idx[l]) (the element's Voigt
     components of a 6 x 6 modulus, or idx = 0..nv-1 of a reduced one); cb (nv, nd) is scratch.
@@ -125,7 +126,7 @@ def add_btcb(b, w, c, idx, cb, ke):
             ke[i, j] += s
 
 
-@nb.njit(cache=True)
+@inner
 def add_bts(b, w, sig6, idx, fe):
     """fe += w B^T sigma at one point (sigma a Voigt 6-vector, read at idx)."""
     nv, nd = b.shape
@@ -136,7 +137,7 @@ def add_bts(b, w, sig6, idx, fe):
         fe[i] += w * s
 
 
-@nb.njit(cache=True)
+@inner
 def plane_add_btcb(g, w, c, shear, cb, ke):
     """:func:`add_btcb` of a plane cell from its gradients g (n_nodes, 2): B's rows (xx, yy, xy) have two
     nonzeros per column, skipped; the same sums in the same order (the same bits). c's rows and
@@ -156,7 +157,7 @@ def plane_add_btcb(g, w, c, shear, cb, ke):
             ke[2 * a + 1, j] += gy * cb[1, j] + gx * cb[2, j]
 
 
-@nb.njit(cache=True)
+@inner
 def plane_add_bts(g, w, sig6, fe):
     """:func:`add_bts` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped."""
     for a in range(g.shape[0]):
@@ -165,7 +166,7 @@ def plane_add_bts(g, w, sig6, fe):
         fe[2 * a + 1] += w * (gy * sig6[1] + gx * sig6[3])
 
 
-@nb.njit(cache=True)
+@inner
 def point_strain(b, ue, idx, eps6):
     """Full Voigt strain eps6 (6,) = B u_e on the components idx, zero elsewhere (plane strain)."""
     nv, nd = b.shape
@@ -177,7 +178,7 @@ def point_strain(b, ue, idx, eps6):
         eps6[idx[k]] = s
 
 
-@nb.njit(cache=True)
+@inner
 def plane_point_strain(g, ue, eps6):
     """:func:`point_strain` of a plane cell from its gradients g (n_nodes, 2), B's zeros skipped
     (the same sums in the same order, so the same bits)."""
@@ -235,7 +236,7 @@ def strains(grads: np.ndarray, ue: np.ndarray) -> np.ndarray:
     return eps
 
 
-@nb.njit(cache=True)
+@kernel
 def elastic_assemble(grads: np.ndarray, wdet: np.ndarray, d: np.ndarray, slots: np.ndarray,
                      data: np.ndarray) -> None:
     """data[slots[e]] += sum_q w det J B^T D B for every cell e: the stiffness values and their scatter

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
+
+from rockfrac.compiled import inner, kernel
 
 # --------------------------------------------------------------------------------------------
 # acoustic tensor, its determinant and gradients (Numba)
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _cn_row(c, a, n0, n1, n2):
     """Row a of C N(n) (3 values): N(n)'s three nonzeros per column, in the order of the full sum."""
     return (c[a, 0] * n0 + c[a, 3] * n1 + c[a, 5] * n2,
@@ -18,7 +19,7 @@ def _cn_row(c, a, n0, n1, n2):
             c[a, 2] * n2 + c[a, 4] * n1 + c[a, 5] * n0)
 
 
-@nb.njit(cache=True)
+@kernel
 def _acoustic(c, n, out):
     """out (3, 3) = N(n)^T c N(n): A_ik = n_j C_ijkl n_l for c (6, 6) Voigt.
 
@@ -32,7 +33,7 @@ def _acoustic(c, n, out):
     out[2, 0], out[2, 1], out[2, 2] = a[6], a[7], a[8]
 
 
-@nb.njit(cache=True)
+@kernel
 def _acoustic_dense(c, n, out):
     """The dense form of :func:`_acoustic` (reference of the tests)."""
     nm = np.zeros((6, 3))  # strain-like sym(a x n) = nm @ a
@@ -57,7 +58,7 @@ def _acoustic_dense(c, n, out):
             out[i, k] = acc
 
 
-@nb.njit(cache=True)
+@kernel
 def acoustic_tensor(c, n):
     """Acoustic tensor A(n) (3, 3) [Pa] of the Voigt modulus c (6, 6) for the normal n (3,)."""
     out = np.empty((3, 3))
@@ -65,7 +66,7 @@ def acoustic_tensor(c, n):
     return out
 
 
-@nb.njit(cache=True)
+@inner
 def _cofactor(a, cof):
     """cof (3, 3) = d det(a) / d a_ik; returns det(a)."""
     cof[0, 0] = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
@@ -80,7 +81,7 @@ def _cofactor(a, cof):
     return a[0, 0] * cof[0, 0] + a[0, 1] * cof[0, 1] + a[0, 2] * cof[0, 2]
 
 
-@nb.njit(cache=True)
+@inner
 def _acoustic9(c, n0, n1, n2):
     """A(n) of :func:`_acoustic` as 9 values, row by row (no arrays)."""
     r0 = _cn_row(c, np.int64(0), n0, n1, n2)
@@ -97,7 +98,7 @@ def _acoustic9(c, n0, n1, n2):
             n2 * r2[2] + n1 * r4[2] + n0 * r5[2])
 
 
-@nb.njit(cache=True)
+@inner
 def _cofactor9(a):
     """(det, cofactors row by row) of a 3x3 given as 9 values; :func:`_cofactor`'s formulas."""
     a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
@@ -113,7 +114,7 @@ def _cofactor9(a):
     return a00 * c00 + a01 * c01 + a02 * c02, (c00, c01, c02, c10, c11, c12, c20, c21, c22)
 
 
-@nb.njit(cache=True)
+@inner
 def _det_grad3(c, n0, n1, n2):
     """(det A(n), d det A / d n) of :func:`_det_grad` as scalars (no arrays, the same arithmetic)."""
     det, cof = _cofactor9(_acoustic9(c, n0, n1, n2))
@@ -138,7 +139,7 @@ def _det_grad3(c, n0, n1, n2):
     return det, g
 
 
-@nb.njit(cache=True)
+@inner
 def _det_grad(c, n, grad):
     """det A(n) and grad (3,) = d det A / d n (n not normalized: A is quadratic in n).
 
@@ -151,7 +152,7 @@ def _det_grad(c, n, grad):
     return det
 
 
-@nb.njit(cache=True)
+@inner
 def _ratio_grad3(c, ce, n0, n1, n2):
     """(r, dr/dn as 3 values) of :func:`_ratio_grad`, no arrays."""
     d1, g1 = _det_grad3(c, n0, n1, n2)
@@ -160,7 +161,7 @@ def _ratio_grad3(c, ce, n0, n1, n2):
                      (g1[2] * d2 - d1 * g2[2]) / (d2 * d2))
 
 
-@nb.njit(cache=True)
+@inner
 def _ratio_grad(c, ce, n, grad):
     """r = det A(n) / det A^e(n) and grad (3,) = dr/dn."""
     r, g = _ratio_grad3(c, ce, n[0], n[1], n[2])
@@ -169,7 +170,7 @@ def _ratio_grad(c, ce, n, grad):
     return r
 
 
-@nb.njit(cache=True)
+@inner
 def _ratio3(c, ce, n0, n1, n2):
     """det A(n) / det A^e(n) for n = (n0, n1, n2), no arrays."""
     d1, _ = _cofactor9(_acoustic9(c, n0, n1, n2))
@@ -177,13 +178,13 @@ def _ratio3(c, ce, n0, n1, n2):
     return d1 / d2
 
 
-@nb.njit(cache=True)
+@kernel
 def _ratio(c, ce, n):
     """det A(n) / det A^e(n)."""
     return _ratio3(c, ce, n[0], n[1], n[2])
 
 
-@nb.njit(cache=True)
+@kernel
 def det_ratios(c, ce, normals):
     """det A(n) / det A^e(n) at each row of normals (k, 3); returns (k,)."""
     out = np.empty(normals.shape[0])
@@ -192,7 +193,7 @@ def det_ratios(c, ce, normals):
     return out
 
 
-@nb.njit(cache=True)
+@inner
 def lowest_ratio(c, normals, det_e, a, cof):
     """The lowest det A(n) / det A^e(n) over the given normals (k, 3), with det A^e (k,) computed
     once for them, and the index of its normal: (ratio, k). a, cof: (3, 3) scratch."""
@@ -205,7 +206,7 @@ def lowest_ratio(c, normals, det_e, a, cof):
     return best, k_best
 
 
-@nb.njit(cache=True)
+@inner
 def elastic_dets(ce, normals):
     """det A^e(n) (k,) of the elastic acoustic tensor at each of the normals (k, 3)."""
     out = np.empty(normals.shape[0])

@@ -7,6 +7,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws import drucker_prager as dp
 from rockfrac.laws.acoustic import (
     _acoustic,
@@ -25,14 +26,14 @@ from rockfrac.threads import parallel_kernel
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _dtheta(c, ce, t):
     """d r / d theta at n = (cos t, sin t, 0)."""
     _, g = _ratio_grad3(c, ce, math.cos(t), math.sin(t), 0.0)
     return -math.sin(t) * g[0] + math.cos(t) * g[1]
 
 
-@nb.njit(cache=True)
+@kernel
 def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
     """Local minima of r(theta) over [0, pi): fills theta_out, ratio_out; returns their count.
 
@@ -42,7 +43,7 @@ def _plane_strain_minima(c, ce, n_sweep, theta_out, ratio_out):
     return _plane_strain_minima_swept(c, ce, n_sweep, _elastic_sweep(ce, n_sweep), theta_out, ratio_out)
 
 
-@nb.njit(cache=True)
+@inner
 def _elastic_sweep(ce, n_sweep):
     """(n_sweep, 3): cos t, sin t and det A^e(n) at the sweep's normals t = i pi / n_sweep."""
     h = math.pi / n_sweep
@@ -55,7 +56,7 @@ def _elastic_sweep(ce, n_sweep):
     return out
 
 
-@nb.njit(cache=True)
+@inner
 def _plane_strain_minima_swept(c, ce, n_sweep, sweep, theta_out, ratio_out):
     """:func:`_plane_strain_minima` with the elastic part of the sweep (:func:`_elastic_sweep`, the
     same at every point) given: det A(n) / det A^e(n) with the same values, so the same bits."""

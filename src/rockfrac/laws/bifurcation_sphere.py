@@ -8,6 +8,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws import drucker_prager as dp
 from rockfrac.laws.acoustic import _ratio, _ratio_grad, elastic_dets, lowest_ratio
 from rockfrac.threads import parallel_kernel
@@ -17,12 +18,12 @@ from rockfrac.threads import parallel_kernel
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _dot3(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@nb.njit(cache=True)
+@inner
 def _chart(n, e1, e2):
     """Fill e1, e2 (3,) so that (n, e1, e2) is orthonormal (n a unit vector)."""
     k = 0
@@ -40,7 +41,7 @@ def _chart(n, e1, e2):
     e2[2] = n[0] * e1[1] - n[1] * e1[0]
 
 
-@nb.njit(cache=True)
+@inner
 def _chart_point(n, e1, e2, u, v, m):
     """m = (n + u e1 + v e2) / |.|; returns the length before normalization."""
     for i in range(3):
@@ -51,7 +52,7 @@ def _chart_point(n, e1, e2, u, v, m):
     return lm
 
 
-@nb.njit(cache=True)
+@inner
 def _chart_grad(c, ce, n, e1, e2, u, v, out):
     """r and (dr/du, dr/dv) at m = n + u e1 + v e2 normalized."""
     m = np.empty(3)
@@ -66,7 +67,7 @@ def _chart_grad(c, ce, n, e1, e2, u, v, out):
     return r
 
 
-@nb.njit(cache=True)
+@kernel
 def _refine_sphere(c, ce, n0):
     """Local minimum of r on the unit sphere from n0 (3,): damped Newton in a moving chart.
 
@@ -114,7 +115,7 @@ def _refine_sphere(c, ce, n0):
     return n
 
 
-@nb.njit(cache=True)
+@inner
 def _sphere_point(i, j, n_polar, n_azimuth, out):
     """Grid normal: polar (i + 1/2) pi / n_polar, azimuth 2 pi j / n_azimuth."""
     th = math.pi * (i + 0.5) / n_polar
@@ -124,7 +125,7 @@ def _sphere_point(i, j, n_polar, n_azimuth, out):
     out[2] = math.cos(th)
 
 
-@nb.njit(cache=True)
+@kernel
 def _sphere_candidates(c, ce, n_polar, n_azimuth, cand):
     """Local minima of r on a (polar, azimuth) grid of the sphere, the lowest cand.shape[0] of them.
 

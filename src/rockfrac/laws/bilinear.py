@@ -30,6 +30,7 @@ import numba as nb
 import numpy as np
 from pydantic import Field
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.fem.interface import (
     CHUNK,
     junction_rows,
@@ -61,7 +62,7 @@ class BilinearParameters(Section):
                         "dissipates Gc)")
 
 
-@nb.njit(cache=True)
+@inner
 def strength(kappa, p):
     """s(kappa) [Pa]."""
     if kappa >= p[P_DELTA]:
@@ -69,14 +70,14 @@ def strength(kappa, p):
     return p[P_SIGMA] * (1.0 - kappa / p[P_DELTA])
 
 
-@nb.njit(cache=True)
+@inner
 def effective(tt, tn, beta):
     """t = sqrt(<T_n>^2 + T_t^2 / beta^2) [Pa]."""
     pos = max(0.0, tn)
     return math.sqrt(pos * pos + tt * tt / (beta * beta))
 
 
-@nb.njit(cache=True)
+@inner
 def _opening_return(tr_t, tr_n, kt, kn, kappa, p, d_cap):
     """Plastic return with tr_n > 0, 0 < dgamma < d_cap: returns (dgamma, T_t, T_n, status)."""
     beta2 = p[P_BETA] * p[P_BETA]
@@ -111,7 +112,7 @@ def _opening_return(tr_t, tr_n, kt, kn, kappa, p, d_cap):
     return dg, tr_t, tr_n, FAIL
 
 
-@nb.njit(cache=True)
+@kernel
 def return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     """The state at the trial traction (tr_t, tr_n) = T_old + K d[[u]] (EP; K = diag(1/ct, 1/cn)) or
     lambda + r h (RP; ct = cn = 1/r), and the consistent tangent D = dT / d[[u]] (2, 2). Returns 0
@@ -188,7 +189,7 @@ def return_map(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     return 1
 
 
-@nb.njit(cache=True)
+@kernel
 def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     """:func:`return_map`, with FAIL where it raises (a singular tangent): the law's trial_kernel."""
     try:
@@ -197,7 +198,7 @@ def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
         return FAIL
 
 
-@nb.njit(cache=True)
+@inner
 def point_update(du, s_old, p, s_new, D):
     """One EP update of one point by the local jump increment du (2,) [m]."""
     return return_map(s_old[S_TT] + du[0] / p[P_CT], s_old[S_TN] + du[1] / p[P_CN], p[P_CT], p[P_CN], s_old, p,
@@ -252,7 +253,7 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
                 junction_rows(r, w, eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fe[i], ke[i])
 
 
-@nb.njit(cache=True)
+@kernel
 def drive_kernel(jumps, p, states):
     """States (n, N_STATE) along total local jumps (n, 2) from zero; returns the failing row or -1."""
     s = np.zeros(N_STATE)

@@ -40,6 +40,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive_params import (
     MODE_ELASTIC,
     MODE_PLASTIC,
@@ -91,7 +92,7 @@ from rockfrac.threads import parallel_kernel
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def elastic_update(tt, tn, ct, cn, s_old, s_new, D):
     """Elastic step on scalars: T = (tt, tn) [Pa], D = diag(1/ct, 1/cn) [Pa/m], ISVs unchanged."""
     for k in range(N_STATE):
@@ -107,7 +108,7 @@ def elastic_update(tt, tn, ct, cn, s_old, s_new, D):
     return ST_ELASTIC
 
 
-@nb.njit(cache=True)
+@kernel
 def return_map(du, s_old, comp, p, s_new, D):
     """Backward-Euler return (eq. 30-31) from T^tr = T_old + K^e du, K^e = diag(1/comp) [Pa/m].
 
@@ -120,7 +121,7 @@ def return_map(du, s_old, comp, p, s_new, D):
                         comp[0], comp[1], s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True)
+@kernel
 def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
     """:func:`return_map` with the work rule's start-of-flow traction t_s (2,) [Pa] and its start kind.
 
@@ -131,7 +132,7 @@ def return_map_from(du, s_old, t_s, start, comp, p, s_new, D):
                        s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True)
+@inner
 def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """:func:`return_map_from` on scalars and a caller's :func:`workspace` (allocates nothing).
 
@@ -152,7 +153,7 @@ def return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old
                          wk)
 
 
-@nb.njit(cache=True)
+@inner
 def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """The return of :func:`return_step` from the trial (tt, tn) [Pa], which is outside the surface."""
     en_old, es_old = s_old[S_EPSN], s_old[S_EPSS]
@@ -170,7 +171,7 @@ def _plastic_step(du_t, du_n, t_old_t, t_old_n, tt, tn, t_s_t, t_s_n, start, ct,
     return _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk)
 
 
-@nb.njit(cache=True)
+@inner
 def _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk):
     """After the local Newton (status st, solution x): the checks, the consistent tangent and the commit."""
     if st < 0:
@@ -184,7 +185,7 @@ def _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D,
     return ST_PLASTIC
 
 
-@nb.njit(cache=True)
+@inner
 def rescued_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk):
     """:func:`return_step`, and where its Newton from the frozen guess fails, the same backward-Euler
     return from a bracketed guess or by continuation (:mod:`rockfrac.laws.cohesive_rescue`): the EP
@@ -205,21 +206,21 @@ def rescued_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_ol
     return _finish(st, x, du, t_old, en_old, es_old, comp, p, ws, dws, s_old, s_new, D, wk)
 
 
-@nb.njit(cache=True)
+@kernel
 def ep_update(du, s_old, p, s_new, D):
     """EP return map (eq. 30-31) with the law's K^e = diag(kt, kn), for the local jump increment du [m];
     rescued where its Newton fails (:func:`rescued_step`)."""
     return ep_rescued_jump(du[0], du[1], s_old, p, s_new, D, workspace())
 
 
-@nb.njit(cache=True)
+@inner
 def ep_rescued_jump(du_t, du_n, s_old, p, s_new, D, wk):
     """:func:`ep_update_jump`, rescued where its Newton fails (:func:`rescued_step`)."""
     return rescued_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
                         p[P_CT], p[P_CN], s_old, p, s_new, D, wk)
 
 
-@nb.njit(cache=True)
+@kernel
 def ep_update_jump(du_t, du_n, s_old, p, s_new, D, wk):
     """:func:`ep_update` for the increment (du_t, du_n) [m] on a caller's :func:`workspace`."""
     return return_step(du_t, du_n, s_old[S_TT], s_old[S_TN], s_old[S_TT], s_old[S_TN], np.int64(START_CROSSING),
@@ -244,7 +245,7 @@ def ep_update_points(du, s_old, p, s_new, D, status):
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_admissible(du, p):
     """False if du cannot be dgamma g with dgamma > 0: g_n = tan psi >= 0 (zero iff tan psi_p = 0)."""
     if du[0] == 0.0 and du[1] == 0.0:
@@ -256,7 +257,7 @@ def _rp_admissible(du, p):
     return du[1] == 0.0
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_direct_guess(du, s_old, p, x):
     """Frozen-ISV closed form of eq. (34): dgamma = du_n / tan psi, g_t = du_t / dgamma, F = 0.
 
@@ -277,7 +278,7 @@ def _rp_direct_guess(du, s_old, p, x):
     return True
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_work_start(du, s_old, p, wk):
     """Work-rule start terms of eq. (34) into wk's ws, dws: the committed traction of a plastic point,
     else none. Sets wk's T_old and C to zero (the rigid form)."""
@@ -291,7 +292,7 @@ def _rp_work_start(du, s_old, p, wk):
     _work_start(t_s, du, comp, s_old[S_EPSN], s_old[S_EPSS], p, start, ws, dws)  # no K^e used
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_solve(du, s_old, p, x, sgn, wk):
     """Newton on eq. (34) from x with T_t put on the side sgn; returns the Newton status."""
     _rp_work_start(du, s_old, p, wk)
@@ -304,7 +305,7 @@ def _rp_solve(du, s_old, p, x, sgn, wk):
     return _newton(x, du, wk[12], s_old[S_EPSN], s_old[S_EPSS], wk[11], p, wk[8], sgn, wk)
 
 
-@nb.njit(cache=True)
+@kernel
 def rp_update(du, s_old, p, x_guess, s_new, D):
     """RP local problem (eq. 34) for the plastic jump increment du (2,) [m] since s_old.
 
@@ -338,7 +339,7 @@ def rp_update(du, s_old, p, x_guess, s_new, D):
     return ST_PLASTIC
 
 
-@nb.njit(cache=True)
+@kernel
 def rp_tangent_at(x, du, s_old, p, D):
     """D = dT/d(du) [Pa/m] of the RP local problem (eq. 34) evaluated at x (5,); 0 ok, -3 singular."""
     wk = workspace()

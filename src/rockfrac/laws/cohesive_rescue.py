@@ -29,9 +29,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive_solve import ST_NO_CONVERGENCE, _newton
 from rockfrac.laws.cohesive_surface import _sign, strengths, yield_function
 from rockfrac.laws.cohesive_system import _work_start
@@ -41,7 +41,7 @@ MAX_CONTINUATION = 200  # continuation steps before the rescue gives up
 MIN_GROWTH = 1.0e-8  # smallest continuation step in lambda
 
 
-@nb.njit(cache=True)
+@inner
 def _bracketed_step(x, f, df, lo, hi):
     """One safeguarded Newton step on an increasing residual f(x) whose root is bracketed by [lo, hi]:
     the bracket shrunk by the sign of f, then the Newton point if it is inside, else the midpoint.
@@ -56,7 +56,7 @@ def _bracketed_step(x, f, df, lo, hi):
     return x_new, lo, hi, abs(x_new - x) <= 4.0e-16 * abs(x) or hi - lo <= 4.0e-16 * abs(hi)
 
 
-@nb.njit(cache=True)
+@kernel
 def tangential_traction(tr, kappa, a_g):
     """|T_t| [Pa] solving ``t + kappa t / sqrt(t^2 + a_g^2) = tr`` for tr >= 0, kappa >= 0, a_g >= 0,
     with g_t = t / sqrt(t^2 + a_g^2) and d|T_t|/d kappa [m]: (t, g, dt_dkappa).
@@ -93,7 +93,7 @@ def tangential_traction(tr, kappa, a_g):
     return a_g * g / q, g, a_g / (q * q * q) * dg_dk
 
 
-@nb.njit(cache=True)
+@inner
 def _frozen_yield(dg, tt_tr, tn_tr, kt, kn, chi, c, tphi, tpsi):
     """F [Pa] and dF/d dgamma [Pa/m] of the frozen return at dgamma, with (T_t, T_n) [Pa]."""
     a_g = c - chi * tpsi
@@ -107,7 +107,7 @@ def _frozen_yield(dg, tt_tr, tn_tr, kt, kn, chi, c, tphi, tpsi):
     return f, dt - tphi * kn * tpsi, sg * t, tn
 
 
-@nb.njit(cache=True)
+@kernel
 def bracketed_frozen_return(x, du, t_old, comp, p):
     """The return with the strengths frozen at x's ISVs, by bracketing its dgamma; x = (T_t, T_n,
     eps_n, eps_s, dgamma) is overwritten with it. False if no dgamma > 0 reaches F = 0 (no dilation
@@ -141,7 +141,7 @@ def bracketed_frozen_return(x, du, t_old, comp, p):
     return True
 
 
-@nb.njit(cache=True)
+@inner
 def _solve_at(lam, x, du, t_old, t_s, start, en_old, es_old, comp, p, sub_du, ws, dws, wk):
     """Newton of the return for the increment lam du from x (kept as found if it fails), with its own
     work-rule start terms; the status of :func:`rockfrac.laws.cohesive_solve._newton`."""
@@ -153,7 +153,7 @@ def _solve_at(lam, x, du, t_old, t_s, start, en_old, es_old, comp, p, sub_du, ws
     return _newton(x, sub_du, t_old, en_old, es_old, comp, p, ws, sgn, wk)
 
 
-@nb.njit(cache=True)
+@kernel
 def rescue_return(x, du, t_old, t_s, start, en_old, es_old, comp, p, ws, dws, wk):
     """The backward-Euler return (eq. 31) where its Newton from the frozen guess failed: x (5,) gets
     the solution; ws, dws get the work rule's terms of du. Returns the final Newton's status (its wk

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive_params import (
     MODE_PLASTIC,
     N_STATE,
@@ -38,7 +38,7 @@ ST_SINGULAR = -3  # singular Jacobian or NaN
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _gauss(a, b):
     """Solve a x = b in place (b (n, m) becomes x); row equilibration + partial pivoting.
 
@@ -90,7 +90,7 @@ def _gauss(a, b):
     return True
 
 
-@nb.njit(cache=True)
+@kernel
 def _norm(r):
     """Euclidean norm of the scaled (dimensionless) residual."""
     acc = 0.0
@@ -99,7 +99,7 @@ def _norm(r):
     return math.sqrt(acc)
 
 
-@nb.njit(cache=True)
+@inner
 def _corner_limit(x0, dx0, sgn):
     """Largest step fraction (<= 1) keeping T_t on its side (sgn) of the corner T_t = 0."""
     if sgn != 0.0 and sgn * (x0 + dx0) <= 0.0:
@@ -107,7 +107,7 @@ def _corner_limit(x0, dx0, sgn):
     return 1.0
 
 
-@nb.njit(cache=True)
+@kernel
 def workspace():
     """Scratch arrays of one local solve, reused point after point (a kernel makes one per chunk).
 
@@ -124,7 +124,7 @@ CONVERGED = 1  # Newton converged; the workspace's jac is the Jacobian at the so
 CONVERGED_STALLED = 2  # accepted at a stalled line search below TOL_STALL; jac is not kept
 
 
-@nb.njit(cache=True)
+@inner
 def _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk):
     """Local Newton with backtracking on the scaled residual; x (5,) updated in place.
 
@@ -169,7 +169,7 @@ def _newton(x, du, t_old, en_old, es_old, comp, p, ws, sgn, wk):
     return CONVERGED if nrm <= TOL_RES else ST_NO_CONVERGENCE
 
 
-@nb.njit(cache=True)
+@kernel
 def _frozen_rows(tt, dg, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi):
     """Rows 0 and 4 of :func:`_system` with the strengths frozen and T_n eliminated by row 1
     (T_n = T_n^tr - dgamma tan psi / kn): (r0, r4, dr0/dT_t, dr0/ddgamma, dr4/dT_t, dr4/ddgamma)."""
@@ -186,7 +186,7 @@ def _frozen_rows(tt, dg, du, t_old, comp, wu, s, tn_tr, chi, c, tphi, tpsi):
             -tphi * tpsi / (comp[1] * s))
 
 
-@nb.njit(cache=True)
+@kernel
 def _frozen_return(x, du, t_old, comp, p, sgn):
     """Guess of the EP return (eq. 31) with the strengths frozen at x's ISVs, from x = the trial.
 
@@ -237,7 +237,7 @@ def _frozen_return(x, du, t_old, comp, p, sgn):
     return True
 
 
-@nb.njit(cache=True)
+@inner
 def _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D, wk, have_jac):
     """Consistent tangent D = dT/d(du) [Pa/m] = -(J^-1)[0:2, 0:2] (unscaled); False if singular.
 
@@ -268,7 +268,7 @@ def _tangent(x, du, t_old, en_old, es_old, comp, p, ws, dws, D, wk, have_jac):
     return True
 
 
-@nb.njit(cache=True)
+@inner
 def _commit(x, up_inc_t, up_inc_n, s_old, s_new):
     """Write the plastic state x = (T_t, T_n, eps_n, eps_s, dgamma) and u^p increment to s_new."""
     for k in range(N_STATE):

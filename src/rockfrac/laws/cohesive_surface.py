@@ -7,6 +7,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive_params import (
     P_A_C,
     P_A_CHI,
@@ -27,7 +28,7 @@ from rockfrac.threads import parallel_kernel
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _isv(eps_n, eps_s, p):
     """chi, c [Pa], tan phi, tan psi and d chi/dw, dc/dw [Pa], d tanphi/d eps_s, d tanpsi/d eps_s.
 
@@ -49,7 +50,7 @@ def _isv(eps_n, eps_s, p):
             -p[P_A_PHI] * d_phi * e_phi, -p[P_A_PSI] * tpsi)
 
 
-@nb.njit(cache=True)
+@kernel
 def strengths(eps_n, eps_s, p):
     """Strengths (chi [Pa], c [Pa], tan phi, tan psi) at eps_n^p, eps_s^p (Sect. 4.2)."""
     q = _isv(eps_n, eps_s, p)
@@ -67,7 +68,7 @@ def strengths_points(eps_n, eps_s, p):
     return out
 
 
-@nb.njit(cache=True)
+@kernel
 def _ratio(a, r):
     """a / r with 0 / 0 := 0 (the corner of a degenerate hyperbola, r = sqrt(T_t^2 + a_F^2))."""
     if r > 1.0e-280:
@@ -75,7 +76,7 @@ def _ratio(a, r):
     return 0.0
 
 
-@nb.njit(cache=True)
+@inner
 def _sign(v):
     """sign(v) with sign(0) = 0."""
     if v > 0.0:
@@ -85,7 +86,7 @@ def _sign(v):
     return 0.0
 
 
-@nb.njit(cache=True)
+@kernel
 def yield_function(Tt, Tn, eps_n, eps_s, p):
     """Yield function F [Pa] of eq. (18) at traction (T_t, T_n) [Pa] and ISVs eps_n, eps_s."""
     chi, c, tphi, _ = strengths(eps_n, eps_s, p)
@@ -93,7 +94,7 @@ def yield_function(Tt, Tn, eps_n, eps_s, p):
     return math.sqrt(Tt * Tt + a_f * a_f) - (c - Tn * tphi)
 
 
-@nb.njit(cache=True)
+@kernel
 def flow_direction(Tt, Tn, eps_n, eps_s, p):
     """Plastic flow g = dG/dT = (T_t / sqrt(T_t^2 + a_G^2), tan psi), a_G = c - chi tan psi."""
     chi, c, _, tpsi = strengths(eps_n, eps_s, p)
@@ -112,7 +113,7 @@ def flow_points(tt, tn, eps_n, eps_s, p):
     return out
 
 
-@nb.njit(cache=True)
+@inner
 def elastic_tolerance(p):
     """Yield tolerance [Pa]: F <= tol is elastic."""
     return 1.0e-10 * max(p[P_C_P], p[P_CHI_P], 1.0)

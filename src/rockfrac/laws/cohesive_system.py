@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
-
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive_params import P_C_P, P_CHI_P, P_GF1, P_GF2, P_THETA
 from rockfrac.laws.cohesive_surface import (
     _isv,
@@ -28,13 +27,13 @@ START_CROSSING = 2  # flow starts where T_old + a K^e du meets the old yield sur
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@kernel
 def _scale(p):
     """Traction scale s = c_p + chi_p [Pa] of the scaled residual."""
     return max(p[P_C_P] + p[P_CHI_P], 1.0)
 
 
-@nb.njit(cache=True)
+@inner
 def _jump_rows(x, du, t_old, comp, wu, q, r, jac):
     """Rows 0-1: jump balance R_u [m] (eq. 31 / K; eq. 34 if C = 0) times wu [1/m]."""
     tt, dg = x[0], x[4]
@@ -62,7 +61,7 @@ def _jump_rows(x, du, t_old, comp, wu, q, r, jac):
     return u, dgt_dtt, dgt_dag, dag_den, dag_des
 
 
-@nb.njit(cache=True)
+@inner
 def _opening_row(x, en_old, p, q, ws, we, r, jac):
     """Row 2: G_f^I (eps_n - eps_n_old) - <T_n>_w dgamma g_n [Pa m] times we [1/(Pa m)].
 
@@ -83,7 +82,7 @@ def _opening_row(x, en_old, p, q, ws, we, r, jac):
     jac[2, 4] = -we * mac * tpsi
 
 
-@nb.njit(cache=True)
+@inner
 def _slip_row(x, es_old, p, q, gt, ws, we, r, jac):
     """Row 3: G_f^II (eps_s - eps_s_old) - <|T_t| + T_n* tan phi>_w dgamma |g_t| [Pa m] times we.
 
@@ -112,7 +111,7 @@ def _slip_row(x, es_old, p, q, gt, ws, we, r, jac):
     jac[3, 4] = -we * m * ng
 
 
-@nb.njit(cache=True)
+@inner
 def _yield_row(x, q, s, r, jac):
     """Row 4: F(T, q) / s of eq. (18) and its gradient (safe at the corner T_t = a_F = 0)."""
     tt, tn = x[0], x[1]
@@ -130,7 +129,7 @@ def _yield_row(x, q, s, r, jac):
     jac[4, 4] = 0.0
 
 
-@nb.njit(cache=True)
+@kernel
 def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac):
     """Scaled residual r (5,) and Jacobian jac (5, 5) of the local problem at x (see module doc).
 
@@ -146,7 +145,7 @@ def _system(x, du, t_old, en_old, es_old, comp, wu, p, ws, r, jac):
     _yield_row(x, q, s, r, jac)
 
 
-@nb.njit(cache=True)
+@kernel
 def _jump_weight(comp, du, p):
     """Weight 1/L_u [1/m] of the jump rows, L_u = max(C) s + |du| (elastic plus applied jump)."""
     lu = max(comp[0], comp[1]) * _scale(p) + math.sqrt(du[0] * du[0] + du[1] * du[1])
@@ -160,7 +159,7 @@ def _jump_weight(comp, du, p):
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@kernel
 def _work_start(t_s, du, comp, en_old, es_old, p, start, ws, dws):
     """Start-of-flow terms of the work rule: ws = (theta, <T_s,n>, <|T_s,t| + T_s,n* tan phi_old>) [-, Pa, Pa]
     and dws = their du-derivatives [Pa/m] (rows 1-2 of ws).

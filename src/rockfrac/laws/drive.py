@@ -6,9 +6,9 @@ zero jump and the virgin state. A step whose local solve fails is sub-stepped by
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.cohesive import ep_update
 from rockfrac.laws.cohesive_params import (
     N_STATE,
@@ -25,7 +25,7 @@ from rockfrac.laws.cohesive_surface import strengths_points
 MAX_HALVINGS = 20
 
 
-@nb.njit(cache=True)
+@inner
 def _advance(u_from, u_to, s, p, max_halvings):
     """Move the state s (N_STATE,) from total jump u_from to u_to [m] in place, halving on failure.
 
@@ -53,7 +53,7 @@ def _advance(u_from, u_to, s, p, max_halvings):
     return True
 
 
-@nb.njit(cache=True)
+@kernel
 def _drive_kernel(jumps, p, states, max_halvings):
     """Fill states (n, N_STATE) along the path jumps (n, 2); returns the 0-based failing row or -1."""
     s = np.zeros(N_STATE)

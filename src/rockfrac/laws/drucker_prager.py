@@ -26,6 +26,7 @@ import math
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.laws.drucker_prager_params import (
     MODE_APEX,
     MODE_CONE,
@@ -55,14 +56,14 @@ ST_APEX = 2
 ST_NO_RETURN = -3  # no admissible return (X <= 0: softening too fast, or apex without dilatancy)
 
 
-@nb.njit(cache=True)
+@kernel
 def moduli(p):
     """Bulk and shear moduli (K, mu) [Pa] of the parameter vector p."""
     e, nu = p[P_E], p[P_NU]
     return e / (3.0 * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu))
 
 
-@nb.njit(cache=True)
+@kernel
 def elastic_matrix(p):
     """Isotropic Ce (6, 6) [Pa], Voigt (xx, yy, zz, xy, yz, xz), strain-like -> stress-like."""
     k, mu = moduli(p)
@@ -76,7 +77,7 @@ def elastic_matrix(p):
     return c
 
 
-@nb.njit(cache=True)
+@kernel
 def deviator(sigma, s_out):
     """Mean stress p = tr(sigma)/3 [Pa]; s_out (6,) = dev(sigma) (stress-like); returns (p, |s|)."""
     p = (sigma[0] + sigma[1] + sigma[2]) / 3.0
@@ -89,7 +90,7 @@ def deviator(sigma, s_out):
     return p, math.sqrt(nrm)
 
 
-@nb.njit(cache=True)
+@kernel
 def yield_value(sigma, gamma, p):
     """F [Pa] at stress sigma (6,) [Pa] and accumulated gamma."""
     s = np.empty(6)
@@ -98,7 +99,7 @@ def yield_value(sigma, gamma, p):
     return SQ32 * sn + SQ3 * (p[P_BETA] * pm - kappa)
 
 
-@nb.njit(cache=True)
+@inner
 def _cone_gradient(sigma, coef, out):
     """out = sqrt(3/2) nhat + (coef/sqrt 3) 1 as a strain-like Voigt 6-vector (shears doubled).
 
@@ -113,7 +114,7 @@ def _cone_gradient(sigma, coef, out):
     return sn
 
 
-@nb.njit(cache=True)
+@kernel
 def yield_gradient(sigma, p):
     """f = dF/dsigma (6,), strain-like Voigt (= dF/d(sigma_v): shear entries are 2 f_ij) [-]."""
     out = np.empty(6)
@@ -121,7 +122,7 @@ def yield_gradient(sigma, p):
     return out
 
 
-@nb.njit(cache=True)
+@kernel
 def potential_gradient(sigma, p):
     """g = dG/dsigma (6,), strain-like Voigt (shear entries are 2 g_ij) [-]."""
     out = np.empty(6)
@@ -129,7 +130,7 @@ def potential_gradient(sigma, p):
     return out
 
 
-@nb.njit(cache=True)
+@kernel
 def perfectly_plastic_tangent(ce, f, g):
     """Eq. (8): c_ep = Ce - (Ce:g) x (f:Ce) / (f:Ce:g) (6, 6) [Pa]; f, g strain-like Voigt."""
     a = np.zeros(6)  # Ce:g, stress-like
@@ -153,13 +154,13 @@ INV_SQ3 = 1.0 / SQ3
 SQ18 = math.sqrt(18.0)
 
 
-@nb.njit(cache=True)
+@inner
 def _copy_state(s_old, s_new):
     for kk in range(N_STATE):
         s_new[kk] = s_old[kk]
 
 
-@nb.njit(cache=True)
+@inner
 def _cone_row(c, i, ui, vi, n0, n1, n2, n3, n4, n5):
     """Row i of the cone tangent without its I_dev diagonal: c[i, j] = ui nj + vi [j < 3]."""
     c[i, 0] = ui * n0 + vi
@@ -170,7 +171,7 @@ def _cone_row(c, i, ui, vi, n0, n1, n2, n3, n4, n5):
     c[i, 5] = ui * n5
 
 
-@nb.njit(cache=True)
+@inner
 def return_map_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
     """:func:`return_map` without allocations: (k, mu) = moduli(p); ce (= elastic_matrix(p)) and the
     scratch work (5, 6) are no longer read (kept in the signature for the callers).
@@ -315,7 +316,7 @@ def return_map_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
     return ST_APEX
 
 
-@nb.njit(cache=True)
+@kernel
 def return_map(eps, s_old, p, sigma_out, c_out, s_new):
     """Stress sigma_out (6,) [Pa] and consistent tangent c_out (6, 6) [Pa] at total strain eps (6,).
 
@@ -329,7 +330,7 @@ def return_map(eps, s_old, p, sigma_out, c_out, s_new):
 # --- reference path (the kernel before the rewrite) ---------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def _ref_elastic(sig_tr, s_old, ce, sigma_out, c_out, s_new):
     """Elastic step: sigma = sigma_tr, C = Ce, plastic state unchanged."""
     for k in range(N_STATE):
@@ -343,7 +344,7 @@ def _ref_elastic(sig_tr, s_old, ce, sigma_out, c_out, s_new):
     return ST_ELASTIC
 
 
-@nb.njit(cache=True)
+@inner
 def _ref_cone_into(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out, c_out, s_new, nh, a_g, a_f):
     """Return to the cone and its consistent tangent; nh, a_g, a_f (6,) are scratch.
 
@@ -384,7 +385,7 @@ def _ref_cone_into(sig_tr, s_tr, sn_tr, dg, k, mu, x_h, p, ce, s_old, sigma_out,
     return ST_CONE
 
 
-@nb.njit(cache=True)
+@inner
 def _ref_apex(eps, p_tr, k, kappa_n, p, s_old, sigma_out, c_out, s_new):
     """Return to the apex (s = 0): p = p_tr - sqrt(3) b K dgamma, C = K H / D 1 x 1.
 
@@ -412,7 +413,7 @@ def _ref_apex(eps, p_tr, k, kappa_n, p, s_old, sigma_out, c_out, s_new):
     return ST_APEX
 
 
-@nb.njit(cache=True)
+@inner
 def return_map_reference_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, s_new):
     """The return map as it was before :func:`return_map_into` was rewritten for speed (kept as the
     reference path of the tests and of ``benchmarks/kernels.py``): trial stress by the 6 x 6 product
@@ -448,7 +449,7 @@ def return_map_reference_into(eps, s_old, p, k, mu, ce, work, sigma_out, c_out, 
     return st
 
 
-@nb.njit(cache=True)
+@kernel
 def return_map_reference(eps, s_old, p, sigma_out, c_out, s_new):
     """Allocating form of :func:`return_map_reference_into` (the reference of :func:`return_map`)."""
     k, mu = moduli(p)

@@ -11,8 +11,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba as nb
 import numpy as np
+
+from rockfrac.compiled import inner, kernel
 
 P_C_P, P_C_R, P_PHI_P, P_PHI_R, P_PSI_P, P_A_C, P_A_PHI, P_A_PSI = range(8)
 N_PARAMS = 8
@@ -40,7 +41,7 @@ class EmbeddedLaw:
         return p
 
 
-@nb.njit(cache=True)
+@kernel
 def strengths(gamma, c_p, p):
     """(c [Pa], tan phi, psi [rad]) and their gamma-derivatives (dc [Pa/m], dtan phi [1/m], dpsi [1/m])."""
     e_c = math.exp(-p[P_A_C] * gamma)
@@ -58,7 +59,7 @@ def strengths(gamma, c_p, p):
     return c, tphi, psi, dc, dtphi, dpsi
 
 
-@nb.njit(cache=True)
+@inner
 def gamma_of(dzeta, gamma_n, p):
     """gamma = gamma_n + cos(psi(gamma)) dzeta (backward Euler of gamma' = cos(psi) zeta') and d gamma/d dzeta."""
     g = gamma_n + math.cos(p[P_PSI_P] * math.exp(-p[P_A_PSI] * gamma_n)) * dzeta

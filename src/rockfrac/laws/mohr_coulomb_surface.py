@@ -15,6 +15,7 @@ import numba as nb
 import numpy as np
 from pydantic import Field, model_validator
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.fem.interface import (
     CHUNK,
     junction_rows,
@@ -102,7 +103,7 @@ def ep_points(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, statu
             pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
 
 
-@nb.njit(cache=True)
+@kernel
 def ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke, status):
     """The points ``index`` of :func:`ep_points` whose return failed, again with the rescued return
     (:func:`rockfrac.laws.cohesive.rescued_step`): compiled only when a run first needs it."""
@@ -114,7 +115,7 @@ def ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke
         pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fe[i], ke[i])
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched, wk):
     """Point i of :func:`rp_points`."""
@@ -177,7 +178,7 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
                       fe, ke, status, switched, wk)
 
 
-@nb.njit(cache=True)
+@kernel
 def yield_values(state, p):
     """F at the states' tractions (n,) [Pa]."""
     out = np.empty(state.shape[0])
@@ -186,7 +187,7 @@ def yield_values(state, p):
     return out
 
 
-@nb.njit(cache=True)
+@kernel
 def trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D):
     """The EP return (eq. 31) from the trial (tr_t, tr_n) [Pa], K^e = diag(1/ct, 1/cn), T_old = s_old's
     traction (du = C (T^tr - T_old)), D = dT/d(du) [Pa/m]: a function of the trial alone when P_THETA = 0."""

@@ -24,6 +24,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner, kernel
 from rockfrac.fem.interface import CHUNK, local_jump_3d, pair_blocks_3d
 from rockfrac.laws.mohr_coulomb_surface import MohrCoulombSurface
 from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw, keep_committed
@@ -79,7 +80,7 @@ def check_3d(law: TractionLaw) -> None:
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@inner
 def update_3d(ret, tr_t1, tr_t2, tr_n, to_t1, to_t2, to_n, ct, cn, s_old, p, s_new, D, s2o, s2n, d2):
     """3D return via the 2D ``ret`` from the local trial tr_* = to_* + K du [Pa], K = diag(1/ct, 1/ct, 1/cn);
     D (3, 3) = dT/d(du) [Pa/m]; scratch s2o, s2n (n_state3 - 2,), d2 (2, 2); returns ret's status."""
@@ -121,7 +122,7 @@ def update_3d(ret, tr_t1, tr_t2, tr_n, to_t1, to_t2, to_n, ct, cn, s_old, p, s_n
     return st
 
 
-@nb.njit(cache=True)
+@kernel
 def ep_update_3d(ret, du, s_old, p, ct, cn, s_new, D):
     """One EP update of one point by the local jump increment du (3,) [m], K = diag(1/ct, 1/ct, 1/cn);
     D (3, 3) = dT/d(du) [Pa/m]. Returns the law's status (0 elastic, 1 plastic, < 0 failure)."""
@@ -159,7 +160,7 @@ def ep_points_3d(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, st
             pair_blocks_3d(r, weight[i], s_new[i], d_new[i], fe[i], ke[i])
 
 
-@nb.njit(cache=True)
+@inner
 def _rp_rows(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
     """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
     :func:`rockfrac.fem.interface.pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D."""
@@ -241,7 +242,7 @@ def rp_form_3d(law: TractionLaw, frame, weight, djump, lam, aug, eps, pinned, s_
 # --------------------------------------------------------------------------------------------
 
 
-@nb.njit(cache=True)
+@kernel
 def _drive_kernel(ret, jumps, ct, cn, p, states, max_halvings):
     """States (n, n_state3) along total local jumps (n, 3) [m] from zero, a failing step halved (as
     rockfrac.laws.drive._advance); returns the 0-based failing row or -1."""

@@ -34,9 +34,9 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
-import numba as nb
 import numpy as np
 
+from rockfrac.compiled import inner
 from rockfrac.values import Section
 
 S_TT, S_TN, S_UPT, S_UPN = 0, 1, 2, 3  # the common state slots
@@ -44,7 +44,7 @@ COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
 MODE_PLASTIC = 1.0
 
 
-@nb.njit(cache=True)
+@inner
 def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
     """Start of a step at a committed plastic point (no jump increment yet): same traction, the
     committed tangent, so Newton's first iteration predicts continued flow (the laws' point loops)."""
@@ -56,7 +56,7 @@ def keep_committed(s_old, d_old, s_new, d_new, dgamma_slot):
             d_new[i, j] = d_old[i, j]
 
 
-@nb.njit(cache=True)
+@inner
 def hold_constrained(s_old, s_new, d_new, t_t, t_n, aug, dgamma_slot, mode_slot):
     """The constrained branch of the RP form (paper eq. 33) for a point held there (active-set
     pinning): T = lambda + r h given as (t_t, t_n), D = r I."""

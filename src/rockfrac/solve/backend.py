@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from typing import Protocol
 
-import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from rockfrac.compiled import kernel
 from rockfrac.fem.assembly import lower_bound
 
 DENSE_UP_TO = 128  # rows up to which the direct backends factorize densely (crossover ~170: "Tiny systems")
@@ -89,7 +89,7 @@ class SuperLU(_Backend):
         return spla.splu(a.tocsc())
 
 
-@nb.njit(cache=True)
+@kernel
 def is_symmetric(indptr, indices, data, rel_tol):
     """|a_ij - a_ji| <= rel_tol max |a| for every entry of a CSR matrix with sorted rows (a missing
     mirror entry counts as 0), all entries finite and not all zero; stops at the first that is not."""

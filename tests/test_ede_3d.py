@@ -190,10 +190,6 @@ def test_the_plane_is_written_as_triangles_with_exact_vertex_displacements(prism
 def test_general_3d_refusals(tmp_path):
     msh = rt.box(tmp_path / "b.msh", (W, W, H), (2, 2, 4), element="hex8")
     case = plane_case(msh, 0.001)
-    bad = dict(case, embedded=dict(case["embedded"], tracking="nonlocal", tracking_length=0.01))
-    with pytest.raises(CaseError, match=r"\[embedded\] tracking = 'nonlocal'.*2D meshes.*general 3D body.*'local' or "
-                                        r"'none'"):
-        run_case(parse_case(bad), tmp_path / "a")
     bad = dict(case, embedded=dict(case["embedded"], cracks=[{"points": [[0.0, 0.01], [W, 0.05]], "c_p": 5e3}]))
     with pytest.raises(CaseError, match=r"cracks\[0\]: the mesh is a general 3D body; a crack is a plane"):
         run_case(parse_case(bad), tmp_path / "b")
@@ -246,10 +242,15 @@ def test_the_3d_crack_map_draws_the_plane(prism, tmp_path):
 # --- a band tracked through a one-layer prism ---------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def twin_bands(tmp_path_factory):
-    """tests/test_crack_tracking.py's band (12 x 24, weak seed, tracking = "local", 66 steps) on quads,
-    and on one layer of hexahedra of a general 3D body (its z faces held by the [loading] supports)."""
+TRACKING = {"local": {"tracking": "local"}, "nonlocal": {"tracking": "nonlocal", "tracking_length": 0.01}}
+
+
+@pytest.fixture(scope="module", params=list(TRACKING))
+def twin_bands(request, tmp_path_factory):
+    """tests/test_crack_tracking.py's band (12 x 24, weak seed, 66 steps) on quads, and on one layer
+    of hexahedra of a general 3D body (its z faces held by the [loading] supports), tracked locally
+    or by the nonlocal stress at the tip (its 3D average over the cells' centroids in the layer's
+    mid-plane is the 2D one)."""
     import sys
 
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
@@ -259,36 +260,55 @@ def twin_bands(tmp_path_factory):
             "inclusion": [0.0, 0.0067, 0.0034, 0.0167]}
     out = {}
     for name, m in (("2d", mesh), ("3d", dict(mesh, element="hex8", thickness=0.01, nz=1))):
-        case = band_case(m, {"tracking": "local"})
+        case = band_case(m, TRACKING[request.param])
         case["loading"]["max_steps"] = 66
         d = tmp_path_factory.mktemp(name)
         out[name] = (run_case(parse_case(case), d), read_csv(d / "history.csv"), d)
+    out["tracking"] = request.param
     return out
+
+
+def _onsets(d) -> list[str]:
+    """'bifurcation at step k: cell c' of every onset in a run's log, in order."""
+    return [line.split(";")[0].split("localized")[0] for line in (d / "run.log").read_text().splitlines()
+            if "bifurcation" in line]
 
 
 def test_a_band_tracked_through_one_layer_of_hexahedra_follows_the_2d_band(twin_bands):
     """Plane strain by its supports, the 3D body is the 2D one until cells localize; the tracked band
     starts at the same cells with the same normals and c_p (the 3D search finds the in-plane bands),
-    crosses the same number of cells, and the force stays within 1 % of the 2D band's. (Further along,
-    a tip cell may find an out-of-plane minimum of det A a step earlier than the in-plane one: the
-    bodies are not the same problem there.)"""
+    crosses the same cells, and the force stays within 1 % of the 2D band's (local tracking).
+    Further along, a tip cell may find an out-of-plane minimum of det A a step earlier than the
+    in-plane one: the bodies are not the same problem there. With nonlocal tracking the 3D band
+    cuts the same cells in the same order with in-plane normals; one tip opens a step earlier (the
+    3D search at the nonlocal stress), the forces agree to round-off until then, within 3 % of the
+    peak after and within 1 % at the end."""
     (s2, h2, d2), (s3, h3, d3) = twin_bands["2d"], twin_bands["3d"]
     assert s2.result.steps == s3.result.steps == 67  # the confinement step and 66 axial ones
     f2, f3 = h2["F_axial"], h3["F_axial"]
     first = int(np.flatnonzero(h2["n_localized"] > 0)[0])
     np.testing.assert_allclose(f3[:first], f2[:first], rtol=1e-10)
-    assert np.abs(f3 - f2).max() < 0.01 * f2.max()
-
-    def onsets(d):
-        return [line.split(";")[0].split("localized")[0] for line in (d / "run.log").read_text().splitlines()
-                if "bifurcation" in line]
-
-    assert onsets(d3)[:8] == onsets(d2)[:8]  # the same steps and cells
+    assert _onsets(d3)[:8] == _onsets(d2)[:8]  # the same steps and cells
     o2, o3 = s2.built.embeddeds, s3.built.embeddeds
     for a, b in zip(sorted((o for g in o2 for o in g.onsets), key=lambda o: o.cell)[:3],
                     sorted((o for g in o3 for o in g.onsets), key=lambda o: o.cell)[:3]):
         assert abs(abs(float(a.normal @ b.normal)) - 1.0) < 1e-9 and b.c_p == pytest.approx(a.c_p, rel=1e-9)
-    assert sum(g.localized_count() for g in o3) == sum(g.localized_count() for g in o2) == 20
+    if twin_bands["tracking"] == "local":
+        assert np.abs(f3 - f2).max() < 0.01 * f2.max()
+        assert sum(g.localized_count() for g in o3) == sum(g.localized_count() for g in o2) == 20
+        return
+    for g2, g3 in zip(o2, o3):  # per region, the same cells in the same order, at most one apart
+        c2, c3 = [o.cell for o in g2.onsets], [o.cell for o in g3.onsets]
+        short = min(len(c2), len(c3))
+        assert c2[:short] == c3[:short] and abs(len(c2) - len(c3)) <= 1
+    assert sum(g.localized_count() for g in o3) >= 20
+    assert max(abs(float(o.normal[2])) for g in o3 for o in g.onsets) < 1e-12  # in-plane planes
+    split = next(k for k, (a, b) in enumerate(zip(_onsets(d2), _onsets(d3))) if a != b)
+    step = int(_onsets(d2)[split].split("step")[1].split(":")[0])
+    assert split >= 8
+    np.testing.assert_allclose(f3[:step - 1], f2[:step - 1], rtol=1e-8)
+    assert np.abs(f3 - f2).max() < 0.03 * f2.max()
+    assert abs(f3[-1] - f2[-1]) < 0.01 * f2[-1]
 
 
 def test_the_3d_band_is_one_continuous_surface(twin_bands):

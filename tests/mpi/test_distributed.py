@@ -215,6 +215,7 @@ CASES = {
     "joint_2d_cracks": joint_2d_case,
     # the band tracked through one layer of hexahedra of a general 3D body (3D crack fronts across ranks)
     "band_3d_local": lambda: band_case("local", 60, element="hex8"),
+    "band_3d_nonlocal": lambda: band_case("nonlocal", 60, element="hex8"),
     # the path controls whose measures are dot products over every rank's dofs
     "bar_arc_length": lambda: bar_case("arc_length"),
     "bar_energy": lambda: bar_case("energy"),
@@ -253,7 +254,7 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> N
 CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp"}
 
 
-SLOW = {"breakout_initial"}  # on 2 ranks only (20 s a run)
+SLOW = {"breakout_initial", "band_3d_nonlocal"}  # on 2 ranks only (20 s a run; band_3d_local has 3)
 
 
 @pytest.mark.parametrize("name, n", [(name, n) for name in sorted(CASES) for n in (2, 3)

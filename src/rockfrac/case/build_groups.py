@@ -118,9 +118,6 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         raise CaseError(f"{path}: [embedded]: embedded cracks in a general 3D body need hex8 cells; these are "
                         f"{mesh.cell_type} (in tetrahedra the sliding of a cut plane does not converge yet): mesh "
                         "the drucker_prager regions with hexahedra, or remove [embedded]")
-    if emb is not None and general and emb.tracking == "nonlocal":
-        raise CaseError(f"{path}: [embedded] tracking = 'nonlocal': the nonlocal stress at a crack tip is for 2D "
-                        f"meshes; in a general 3D body ({mesh.cell_type} cells) use tracking = 'local' or 'none'")
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)

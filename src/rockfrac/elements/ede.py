@@ -175,7 +175,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cut cell whose surface ends on their shared edge continues it from that point (the crack tip),
         with the conjugate normal closest to the neighbour's; a cell with no cut neighbour starts a
         new crack through its centroid; a cell beside a crack but not at its tip waits (it stays a
-        Drucker-Prager cell) until the crack reaches it. "nonlocal" (2D): as "local", but the tip
+        Drucker-Prager cell) until the crack reaches it. "nonlocal": as "local", but the tip
         cell also opens where the nonlocal stress at its tip point (:meth:`CrackPaths.nonlocal_stress`)
         loses ellipticity, and takes the normal of that stress.
         """

@@ -97,9 +97,9 @@ class EmbeddedCells(DruckerPragerSolid):
         # (nodes 0-3) [m], for the crack map and the ParaView lines (NaN otherwise)
         self.sections = np.full((n_el, 2, 2), np.nan)
         self.nodes = nodes
-        if tracking != "none" and self.dim != 2 and (plane_strain or tracking == "nonlocal"):
-            raise ValueError(f"tracking = {tracking!r} follows crack paths in 2D meshes"
-                             f"{' and (local) in hexahedra of a general 3D body' if tracking == 'local' else ''}")
+        if tracking != "none" and self.dim != 2 and plane_strain:
+            raise ValueError(f"tracking = {tracking!r} follows crack paths in 2D meshes and in hexahedra of a "
+                             "general 3D body, not in a plane-strain slab of hexahedra")
         self.onsets: list[Onset] = []
         nd = self.dofs.shape[1]
         self._dz = np.zeros(n_el)  # jump increments of the current iterate

@@ -10,6 +10,7 @@ import numpy as np
 
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.ede_planes import EDGES, plane_polygons
+from rockfrac.laws.bifurcation import localization_at
 from rockfrac.laws.bifurcation_plane import MAX_MINIMA, minima_plane_strain
 
 
@@ -94,7 +95,7 @@ class CrackPaths:
         self.segment = np.full((n_cells, 2, 2), np.nan)  # 2D: their surfaces clipped to the cells [m]
         self.anchor = np.full((n_cells, 3), np.nan)  # 3D: a point of their planes [m]
         self.normal = np.zeros((n_cells, 3))
-        self.centres = [g.x[..., :2].mean(axis=1) for g in groups]  # own cell centroids per group [m]
+        self.centres = [g.x.mean(axis=1) for g in groups]  # own cell centroids per group [m]
         self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes)
         gids = np.concatenate([i for i, _ in full] + [np.zeros(0, dtype=np.int64)])
         if gids.size == 0:
@@ -226,7 +227,7 @@ class CrackPaths:
         stresses with the Gaussian weight exp(-r^2 / (2 length^2)) of their centroids' distance r to
         the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close. On
         several MPI ranks, a collective call: the sums over every rank's cells."""
-        x = np.asarray(point, dtype=float)[:2]
+        x = np.asarray(point, dtype=float)[:self.nodes.shape[1]]
         total, weight = np.zeros(6), 0.0
         for g, centre in zip(self.groups, self.centres):
             r2 = ((centre - x) ** 2).sum(axis=1)
@@ -241,22 +242,29 @@ class CrackPaths:
         return total / weight if weight > 0.0 else np.full(6, np.nan)
 
     def nonlocal_normal(self, gcell: int, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
-        """Normal (2,) that continues a crack from ``point`` (its tip, on the boundary of cell gcell):
-        of the conjugate bifurcation normals (eq. 7-8) of the nonlocal stress at the tip
-        (:meth:`nonlocal_stress`), the one closest to ``reference`` (the crack's last normal), signed
-        like it. The direction comes from the stress the crack grows into, not from the singular
-        field of the one cell at its tip. The tip cell's law gives the tangent."""
+        """Normal (2,) in 2D, (3,) in 3D, that continues a crack from ``point`` (its tip, on the
+        boundary of cell gcell): of the conjugate bifurcation normals (eq. 7-8) of the nonlocal stress
+        at the tip (:meth:`nonlocal_stress`; in 3D the two lowest minima of det A(n) / det A^e(n) on
+        the unit sphere), the one closest to ``reference`` (the crack's last normal), signed like it.
+        The direction comes from the stress the crack grows into, not from the singular field of the
+        one cell at its tip. The tip cell's law gives the tangent."""
         g = self.groups[self.group_of[gcell]]  # its law (the cell may be another rank's)
-        ref = np.asarray(reference, dtype=float)[:2]
+        dim = self.nodes.shape[1]
+        ref = np.asarray(reference, dtype=float)[:dim]
         sigma = self.nonlocal_stress(point, length)[None, :]
         if not np.all(np.isfinite(sigma)):
             return ref / np.linalg.norm(ref)
-        theta, ratio = np.zeros((1, MAX_MINIMA)), np.full((1, MAX_MINIMA), np.inf)
-        count = np.zeros(1, dtype=np.int64)
-        minima_plane_strain(sigma, g.p, g.ce, g.SCREEN_SWEEP, theta, ratio, count)
-        k = min(int(count[0]), MAX_MINIMA)
-        lowest = np.argsort(ratio[0, :k], kind="stable")[:2]  # the conjugate pair
-        normals = np.stack([np.cos(theta[0, lowest]), np.sin(theta[0, lowest])], axis=1)
+        if dim == 3:
+            loc = localization_at(g.law, sigma[0], plane_strain=False)
+            ranked = np.argsort(np.asarray(loc.ratios), kind="stable")[:2]  # the conjugate pair
+            normals = np.asarray(loc.normals)[ranked]
+        else:
+            theta, ratio = np.zeros((1, MAX_MINIMA)), np.full((1, MAX_MINIMA), np.inf)
+            count = np.zeros(1, dtype=np.int64)
+            minima_plane_strain(sigma, g.p, g.ce, g.SCREEN_SWEEP, theta, ratio, count)
+            k = min(int(count[0]), MAX_MINIMA)
+            lowest = np.argsort(ratio[0, :k], kind="stable")[:2]  # the conjugate pair
+            normals = np.stack([np.cos(theta[0, lowest]), np.sin(theta[0, lowest])], axis=1)
         n = normals[int(np.argmax(np.abs(normals @ ref)))]
         return n if n @ ref >= 0.0 else -n
 

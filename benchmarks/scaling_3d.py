@@ -9,11 +9,17 @@ bulk matrix, stages); "solve" is every factorization and solve of the run; "asse
 of the run (residuals, the tangent, Dirichlet rows). Every run is checked against the closed form
 (u_z = -p z / E on the top, exact in these elements): the relative error is in the table.
 
+``--problem plastic``: the same boxes of a hardening, nonassociative Drucker-Prager rock (a
+non-symmetric tangent) in the paper's test: a lateral pressure on x = 1 with the top held, then two
+axial strain steps of -4e-3 (the second yields), y held at both faces (plane strain). The stress is
+homogeneous, so every mesh must give the material-point driver's axial stress
+(``rockfrac.laws.dp_driver``, the same steps): its relative error is in the table.
+
 Backends: ``pardiso`` (MKL, the default 'auto') and ``gmres-amg`` (GMRES(60) with pyamg's smoothed
 aggregation on 3 x 3 nodal blocks and the six rigid-body modes, relative residual 1e-11).
 Options: ``--sizes 1e4 1e5 3e5 1e6``, ``--elements hex8 tet4``, ``--backends pardiso gmres-amg``,
 ``--timeout`` (s per process), ``--quick`` (1e4 only, prints, writes nothing). Results go to
-``benchmarks/results/scaling_3d.json`` and the "3D scaling" table in ``benchmarks/README.md``.
+``benchmarks/results/scaling_3d[_plastic].json`` and the "3D scaling" tables of ``benchmarks/README.md``.
 """
 
 from __future__ import annotations
@@ -33,6 +39,11 @@ import numpy as np
 
 HERE = Path(__file__).parent
 E, NU, P = 2e10, 0.25, 1e6
+# the plastic problem: the band example's hardening rock (E, nu, beta, b, H [Pa], kappa0 [Pa]) under a
+# lateral pressure [Pa], then AXIAL_STEPS steps of AXIAL_STRAIN / AXIAL_STEPS
+DP = {"model": "drucker_prager", "E": 1.5e7, "nu": 0.3, "beta": 0.480385, "b": 0.321597, "H": 43802.9,
+      "kappa0": 15000.0}
+CONFINEMENT, AXIAL_STRAIN, AXIAL_STEPS = 2e4, -8e-3, 2  # elastic, then yielding
 
 
 def cells_for(dofs: float) -> int:
@@ -40,7 +51,7 @@ def cells_for(dofs: float) -> int:
     return max(2, round((dofs / 3) ** (1 / 3)) - 1)
 
 
-def child_run(element: str, n: int, backend: str, folder: Path) -> dict:
+def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "elastic") -> dict:
     from rockfrac.case.build import build
     from rockfrac.case.schema import parse_case
     from rockfrac.mesh import rock_tests as rt
@@ -51,10 +62,19 @@ def child_run(element: str, n: int, backend: str, folder: Path) -> dict:
     t0 = time.perf_counter()
     msh = rt.box(folder / "box.msh", (1.0, 1.0, 1.0), (n, n, n), element=element)
     t_mesh = time.perf_counter() - t0
-    case = parse_case({"title": "box", "mesh": {"kind": "gmsh", "file": str(msh)}, "bulk": {"E": E, "nu": NU},
-                       "stages": [{"name": "press", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
-                                                                     "bottom": {"z": 0.0}},
-                                   "pressure": {"top": P}}], "solver": {"linear": backend}}, "box")
+    if problem == "plastic":
+        held = {"left": {"x": 0.0}, "front": {"y": 0.0}, "back": {"y": 0.0}, "bottom": {"z": 0.0}}
+        stages = [{"name": "confine", "displacement": dict(held, top={"z": 0.0}), "pressure": {"right": CONFINEMENT}},
+                  {"name": "axial", "steps": AXIAL_STEPS, "displacement": dict(held, top={"z": AXIAL_STRAIN}),
+                   "pressure": {"right": CONFINEMENT}}]
+        spec = {"title": "box", "mesh": {"kind": "gmsh", "file": str(msh)}, "bulk": DP, "stages": stages,
+                "solver": {"linear": backend}}
+    else:
+        spec = {"title": "box", "mesh": {"kind": "gmsh", "file": str(msh)}, "bulk": {"E": E, "nu": NU},
+                "stages": [{"name": "press", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
+                                                              "bottom": {"z": 0.0}},
+                            "pressure": {"top": P}}], "solver": {"linear": backend}}
+    case = parse_case(spec, "box")
     t0 = time.perf_counter()
     built = build(case)
     t_setup = time.perf_counter() - t0
@@ -82,23 +102,41 @@ def child_run(element: str, n: int, backend: str, folder: Path) -> dict:
             return Solve()
 
     sol = case.solver
-    newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy, force_scale=1e-6 * E)
-    state: dict = {}
+    newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
+                           force_scale=1e-6 * (DP["E"] if problem == "plastic" else E))
+    state: dict = {"iterations": 0, "steps": 0}
+
+    def on_step(info) -> None:
+        state.update(u=info.u, f_int=info.f_int, iterations=state["iterations"] + info.newton.iterations,
+                     steps=state["steps"] + 1)
+
     t0 = time.perf_counter()
-    result = run_stages(built.model, built.stages, Timed(), newton, SteppingOptions(),
-                        lambda info: state.update(u=info.u, iterations=info.newton.iterations))
+    result = run_stages(built.model, built.stages, Timed(), newton, SteppingOptions(), on_step)
     t_run = time.perf_counter() - t0
     mesh = built.mesh
     u = state["u"][: 3 * mesh.n_nodes].reshape(-1, 3)
     top = mesh.node_sets["top"]
-    exact = -P * mesh.nodes[top, 2] / E
-    return {"element": element, "n": n, "backend": backend, "dofs": int(built.model.n_dofs),
+    if problem == "plastic":  # the top's reaction / area against the driver's axial stress (its y is our z)
+        from rockfrac.laws.dp_driver import drive_specimen
+        from rockfrac.laws.drucker_prager_params import DruckerPrager
+
+        law = DruckerPrager(**{k: v for k, v in DP.items() if k != "model"})
+        path = drive_specimen(law, confinement=CONFINEMENT, axial_strain=AXIAL_STRAIN, steps=AXIAL_STEPS,
+                              locate=False)
+        sigma_zz = float(state["f_int"][3 * top + 2].sum())  # unit area
+        error = abs(sigma_zz - path.sigma[-1, 1]) / abs(path.sigma[-1, 1])
+        assert path.mode[-1] != 0.0, "the driver's last step must be plastic"
+    else:
+        exact = -P * mesh.nodes[top, 2] / E
+        error = float(np.abs(u[top, 2] - exact).max() / np.abs(exact).max())
+    return {"problem": problem, "element": element, "n": n, "backend": backend, "dofs": int(built.model.n_dofs),
             "cells": int(mesh.cells.shape[0]), "nnz": int(built.model.pattern.nnz),
-            "completed": bool(result.completed), "newton_iterations": int(state.get("iterations", 0)),
+            "completed": bool(result.completed), "newton_iterations": int(state["iterations"]),
+            "steps": int(state["steps"]),
             "factorizations": timing["factorizations"], "gmres_iterations": timing["gmres_iterations"],
             "mesh_s": t_mesh, "setup_s": t_setup, "solve_s": timing["solve"],
             "assembly_s": t_run - timing["solve"], "run_s": t_run,
-            "error": float(np.abs(u[top, 2] - exact).max() / np.abs(exact).max()),
+            "error": float(error),
             "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
 
 
@@ -140,7 +178,8 @@ def table(rows: list[dict], info: dict) -> str:
             lines.append(f"| {r['element']} | | {r.get('target', '')} | {r['backend']} | failed: {r['failed']} "
                          "| | | | | | |")
             continue
-        its = "/".join(str(i) for i in r["gmres_iterations"]) or "-"
+        g = r["gmres_iterations"]
+        its = ("/".join(str(i) for i in g) if len(g) <= 3 else f"{min(g)}-{max(g)} over {len(g)} solves") if g else "-"
         lines.append(f"| {r['element']} | {r['cells']} | {r['dofs']} | {r['backend']} | {r['setup_s']:.2f} | "
                      f"{r['assembly_s']:.2f} | {r['solve_s']:.2f} | {r['factorizations']} | {its} | "
                      f"{r['peak_gib']:.2f} | {r['error']:.1e} |")
@@ -154,11 +193,14 @@ def main() -> None:
     p.add_argument("--backends", nargs="+", default=["pardiso", "gmres-amg"])
     p.add_argument("--timeout", type=float, default=1800.0)
     p.add_argument("--quick", action="store_true")
-    p.add_argument("--child", nargs=3, metavar=("ELEMENT", "N", "BACKEND"))
+    p.add_argument("--problem", choices=["elastic", "plastic"], default="elastic")
+    p.add_argument("--max-direct", type=float, default=float("inf"),
+                   help="run pardiso only up to this many target dofs (its 3D factorization grows fastest)")
+    p.add_argument("--child", nargs=4, metavar=("ELEMENT", "N", "BACKEND", "PROBLEM"))
     args = p.parse_args()
     if args.child:
         with tempfile.TemporaryDirectory() as tmp:
-            print(json.dumps(child_run(args.child[0], int(args.child[1]), args.child[2], Path(tmp))))
+            print(json.dumps(child_run(args.child[0], int(args.child[1]), args.child[2], Path(tmp), args.child[3])))
         return
     sizes = [1e4] if args.quick else args.sizes
     info = machine()
@@ -166,17 +208,21 @@ def main() -> None:
     for element in args.elements:
         for size in sizes:
             for backend in args.backends:
-                r = child(["--child", element, str(cells_for(size)), backend], args.timeout)
+                if backend == "pardiso" and size > args.max_direct:
+                    continue
+                r = child(["--child", element, str(cells_for(size)), backend, args.problem], args.timeout)
                 r.setdefault("element", element)
                 r.setdefault("backend", backend)
                 r["target"] = size
                 rows.append(r)
                 print(json.dumps(r), flush=True)
                 if not args.quick:
-                    out = HERE / "results" / "scaling_3d.json"
+                    suffix = "" if args.problem == "elastic" else f"_{args.problem}"
+                    out = HERE / "results" / f"scaling_3d{suffix}.json"
                     out.write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
                     text = (HERE / "README.md").read_text()
-                    a, b = "<!-- scaling-3d-table:start -->\n", "<!-- scaling-3d-table:end -->"
+                    tag = "scaling-3d" + suffix.replace("_", "-")
+                    a, b = f"<!-- {tag}-table:start -->\n", f"<!-- {tag}-table:end -->"
                     if a in text and b in text:
                         i, j = text.index(a) + len(a), text.index(b)
                         (HERE / "README.md").write_text(text[:i] + table(rows, info) + text[j:])

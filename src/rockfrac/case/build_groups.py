@@ -116,7 +116,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
     general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
     if emb is not None and general and mesh.cell_type != "hex8":
         raise CaseError(f"{path}: [embedded]: embedded cracks in a general 3D body need hex8 cells; these are "
-                        f"{mesh.cell_type} (in tetrahedra the sliding of a cut plane does not converge yet): mesh "
+                        f"{mesh.cell_type} (in a tetrahedron whose grad f_S is far from the plane's normal, "
+                        "sliding raises the yield function: a cut plane does not converge yet): mesh "
                         "the drucker_prager regions with hexahedra, or remove [embedded]")
     ede_regions = None
     if emb is not None and emb.regions is not None:

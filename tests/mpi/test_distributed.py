@@ -365,8 +365,9 @@ def assert_same_table(par: dict, ser: dict, what: str, chatty: bool = False) -> 
     """Every column alike: text equal, numbers (an empty cell: not applicable) to 1e-9 of their column's
     largest magnitude, or of its family's (reactions, displacements, jumps, tractions: a free node's
     reaction, a node held by symmetry, a jump across the slip are round-off), the energy balance's
-    error of the external work. chatty: Newton's iteration counts may differ by step, their total by
-    at most 5 % (see CHATTY)."""
+    error of the external work; the cohesive points' eps_n_p and eps_s_p (dissipations over G_f, 0 to
+    about 1: a point that has not slid holds round-off) of 1. chatty: Newton's iteration counts may
+    differ by step, their total by at most 5 % (see CHATTY)."""
     assert list(par) == list(ser) and len(par[next(iter(par))]) == len(ser[next(iter(ser))]), what
     numbers = {}
     for k in ser:
@@ -383,7 +384,9 @@ def assert_same_table(par: dict, ser: dict, what: str, chatty: bool = False) -> 
         assert abs(p.sum() - s.sum()) <= 0.05 * s.sum(), f"{what} newton_iterations"
     for k, (p, s) in numbers.items():
         family = max((floor[f] for f in families if k.startswith(f)), default=0.0)
-        scale = max(np.nanmax(np.abs(s), initial=0.0), family, work if k == "energy_error" else 0.0, 1e-300)
+        natural = 1.0 if k in ("eps_n_p", "eps_s_p") else 0.0  # fractions of the fracture energy
+        scale = max(np.nanmax(np.abs(s), initial=0.0), family, natural, work if k == "energy_error" else 0.0,
+                    1e-300)
         np.testing.assert_array_equal(np.isnan(p), np.isnan(s))
         assert np.nanmax(np.abs(p - s), initial=0.0) <= 1e-9 * scale, f"{what} {k}"
 

@@ -200,6 +200,7 @@ def newton_step(
                     dlam = control.predictor
                 du = du + dlam * du_b
                 u_lam += dlam
+            del lu  # freed before the next tangent is assembled and factorized: one factor alive at a time
         except RuntimeError as err:  # exactly singular factor
             result.message = f"iteration {it}: singular tangent ({err})"
             return result

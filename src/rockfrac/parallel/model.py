@@ -72,33 +72,43 @@ class DistributedModel(Model):
         self._matrix = self._preallocated()
 
     def _local_csr(self) -> None:
-        """The local pattern's rows and columns of the local dofs, and where each entry comes from."""
-        local = self.layout.local
-        slots = self.pattern.matrix(np.arange(1.0, self.pattern.nnz + 1.0))
-        sub = sp.csr_matrix(slots[local][:, local])
-        sub.sort_indices()
+        """The local pattern's rows and columns of the local dofs (in PETSc order), and where each
+        entry comes from in the pattern's data."""
         PETSc = petsc()
-        self._slot = sub.data.astype(np.int64) - 1
-        self._csr = (sub.indptr.astype(PETSc.IntType), sub.indices.astype(PETSc.IntType))
+        indptr, columns, self._slot = self.pattern.restricted(self.layout.local)
+        self._csr = (indptr.astype(PETSc.IntType), columns.astype(PETSc.IntType, copy=False))
 
     def _preallocated(self):
-        """The MPIAIJ matrix with the exact pattern of the owned rows, every rank's elements included."""
+        """The MPIAIJ matrix with the exact pattern of the owned rows, every rank's elements included.
+
+        The local dofs are in PETSc order, so the owned rows are one slice of the local rows, their
+        columns ascending; only the rows of ghost dofs (the partition's surface) go to their owners,
+        which add the columns they bring to those rows."""
         PETSc, lay = petsc(), self.layout
-        indptr, indices = self._csr
-        rows = lay.local_petsc[np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))].astype(np.int64)
-        cols = lay.local_petsc[indices].astype(np.int64)
+        indptr, columns = self._csr
+        a, b = np.searchsorted(lay.local_petsc, [lay.lo, lay.hi])
+        ghost = np.r_[0:a, b:lay.local_petsc.shape[0]]
+        lengths = np.diff(indptr)[ghost]
+        entries = np.repeat(indptr[ghost] - (np.cumsum(lengths) - lengths), lengths) + np.arange(lengths.sum())
+        rows = np.repeat(lay.local_petsc[ghost], lengths).astype(np.int64)
+        cols = lay.local_petsc[columns[entries]].astype(np.int64)
         owner = lay.owner(rows)
-        sent = [(rows[owner == r], cols[owner == r]) for r in range(lay.size)]
-        got = lay.comm.alltoall(sent)
-        rows = np.concatenate([r for r, _ in got]) - lay.lo
-        cols = np.concatenate([c for _, c in got])
-        keys = np.unique(rows * lay.n + cols)
-        rows, cols = keys // lay.n, keys % lay.n
-        row_ptr = np.zeros(lay.hi - lay.lo + 1, dtype=np.int64)
-        np.cumsum(np.bincount(rows, minlength=lay.hi - lay.lo), out=row_ptr[1:])
+        got = lay.comm.alltoall([(rows[owner == r], cols[owner == r]) for r in range(lay.size)])
+        row_ptr = indptr[a:b + 1] - indptr[a]
+        owned_cols = lay.local_petsc[columns[indptr[a]:indptr[b]]]  # ascending in each row
+        extra_rows = np.concatenate([r for r, _ in got]) - lay.lo
+        if extra_rows.size:  # the union of this rank's columns and the others' in the shared rows
+            shape = (lay.hi - lay.lo, lay.n)
+            mine = sp.csr_matrix((np.ones(owned_cols.shape[0], np.float32), owned_cols, row_ptr), shape=shape)
+            theirs = sp.csr_matrix((np.ones(extra_rows.shape[0], np.float32),
+                                    (extra_rows, np.concatenate([c for _, c in got]))), shape=shape)
+            union = (mine + theirs).tocsr()
+            union.sum_duplicates()
+            union.sort_indices()
+            row_ptr, owned_cols = union.indptr, union.indices
         mat = PETSc.Mat().createAIJ(((lay.hi - lay.lo, lay.n), (lay.hi - lay.lo, lay.n)), bsize=self.dim,
                                     comm=lay.comm)
-        mat.setPreallocationCSR((row_ptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)))
+        mat.setPreallocationCSR((row_ptr.astype(PETSc.IntType), owned_cols.astype(PETSc.IntType)))
         mat.setLGMap(lay.lgmap, lay.lgmap)
         mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         mat.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)

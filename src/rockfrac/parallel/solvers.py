@@ -10,15 +10,16 @@ import numpy as np
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
 from rockfrac.solve.backend import SolverFailed
-from rockfrac.solve.petsc import run_ksp
+from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp
 
 
-class _Factor:
-    """A configured KSP on one distributed matrix: ``solve(b)`` as often as needed."""
+class _Factor(KspFactor):
+    """A configured KSP on one distributed matrix: ``solve(b)`` as often as needed (destroyed when
+    dropped, :class:`rockfrac.solve.petsc.KspFactor`)."""
 
     def __init__(self, ksp, layout: Layout):
-        self._ksp, self._layout = ksp, layout
-        self.iterations = 0
+        super().__init__(ksp)
+        self._layout = layout
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """x with A x = b (b read on the owned dofs), on the local dofs (owned and ghosts)."""
@@ -32,23 +33,19 @@ class _Factor:
             x.destroy()
 
 
-class DistributedSolver:
+class DistributedSolver(OneFactorAlive):
     """A KSP configured by PETSc options on the distributed tangent."""
 
     name = ""
     options: dict[str, str] = {}
     rigid_modes = False  # give the preconditioner the rigid-body modes as its near-null space
 
-    def __init__(self) -> None:
-        self._ksp = None  # the last factorization's, freed by the next (petsc4py does not free it when dropped)
-
     def factorize(self, a: DistributedMatrix) -> _Factor:
         PETSc = petsc()
         if self.rigid_modes:
             a.mat.setNearNullSpace(a.layout.rigid_modes())
-        if self._ksp is not None:
-            self._ksp.destroy()
-        self._ksp = ksp = PETSc.KSP().create(comm=a.layout.comm)
+        self._release_last()
+        ksp = PETSc.KSP().create(comm=a.layout.comm)
         ksp.setOperators(a.mat)
         prefix = f"rockfrac_{self.name.replace('-', '_')}_"
         ksp.setOptionsPrefix(prefix)
@@ -59,8 +56,9 @@ class DistributedSolver:
         try:
             ksp.setUp()
         except PETSc.Error as err:
+            ksp.destroy()
             raise SolverFailed(f"PETSc {self.name} set-up failed: {err}") from None
-        return _Factor(ksp, a.layout)
+        return self._keep(_Factor(ksp, a.layout))
 
     def solve(self, a: DistributedMatrix, b: np.ndarray) -> np.ndarray:
         return self.factorize(a).solve(b)

@@ -21,6 +21,9 @@ backends are simply not installed (``available()``). The options each backend se
 
 from __future__ import annotations
 
+import weakref
+from typing import TypeVar
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -47,18 +50,50 @@ def run_ksp(ksp, rhs, x) -> int:
     return iterations
 
 
-class _PetscFactor:
-    """A configured KSP on one matrix: ``solve(b)`` as often as needed."""
+class KspFactor:
+    """A configured KSP (and the PETSc objects it alone uses), destroyed when the factor is dropped:
+    petsc4py does not free them (0.12 GB a factorization at 1e5 dofs, measured), and Newton drops
+    each factor before it assembles the next tangent. On several ranks the destruction is
+    collective: every rank drops its factor at the same point of the same iteration."""
 
-    def __init__(self, ksp, a):
-        self._ksp, self._a = ksp, a
+    def __init__(self, ksp, *owned):
+        self._ksp, self._owned = ksp, owned
         self.iterations = 0
 
-    def destroy(self) -> None:
-        """Free the KSP, its factors and the matrix (petsc4py does not free them when dropped:
-        0.12 GB a factorization at 1e5 dofs, measured)."""
-        self._ksp.destroy()
-        self._a.destroy()
+    def release(self) -> None:
+        """Destroy the KSP, its factors or AMG hierarchy and Krylov vectors, now."""
+        if self._ksp is not None:
+            self._ksp.destroy()
+            for obj in self._owned:
+                obj.destroy()
+            self._ksp, self._owned = None, ()
+
+    def __del__(self) -> None:
+        if self._ksp is not None and not _petsc().Sys.isFinalized():  # not at the interpreter's exit
+            self.release()
+
+
+F = TypeVar("F", bound=KspFactor)
+
+
+class OneFactorAlive:
+    """A solver that releases its last factor, should anything still hold it (a failed iteration's
+    frame), before it makes the next: one KSP alive at a time."""
+
+    _last: weakref.ref[KspFactor] | None = None
+
+    def _release_last(self) -> None:
+        last = self._last() if self._last is not None else None
+        if last is not None:
+            last.release()
+
+    def _keep(self, factor: F) -> F:
+        self._last = weakref.ref(factor)
+        return factor
+
+
+class _PetscFactor(KspFactor):
+    """A configured KSP on one matrix: ``solve(b)`` as often as needed."""
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         petsc = _petsc()
@@ -75,20 +110,12 @@ class _PetscFactor:
         return out
 
 
-class _PetscBackend(_Backend):
+class _PetscBackend(OneFactorAlive, _Backend):
     options: dict[str, str] = {}
 
     def __init__(self, coordinates: np.ndarray | None = None) -> None:
         _petsc()
         self._coordinates = coordinates
-        self._last: _PetscFactor | None = None
-
-    def _keep(self, factor: _PetscFactor) -> _PetscFactor:
-        """The new factorization; the previous one is freed (a factorization serves until the next)."""
-        if self._last is not None:
-            self._last.destroy()
-        self._last = factor
-        return factor
 
     def _matrix(self, a: sp.csr_matrix):
         petsc = _petsc()
@@ -119,14 +146,17 @@ class PetscDirect(_PetscBackend):
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
+        self._release_last()
         m = self._matrix(a)
         ksp, _, _ = self._ksp(m)
         ksp.setFromOptions()
+        factor = _PetscFactor(ksp, m)
         try:
             ksp.setUp()
         except _petsc().Error as err:
+            factor.release()
             raise SolverFailed(f"PETSc LU (MUMPS) failed: {err}") from None
-        return self._keep(_PetscFactor(ksp, m))
+        return self._keep(factor)
 
 
 class PetscGAMG(_PetscBackend):
@@ -137,6 +167,7 @@ class PetscGAMG(_PetscBackend):
                "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "gamg"}
 
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
+        self._release_last()
         petsc = _petsc()
         m = self._matrix(a)
         x = self._coordinates
@@ -150,11 +181,13 @@ class PetscGAMG(_PetscBackend):
             coords.destroy()
         ksp, _, _ = self._ksp(m)
         ksp.setFromOptions()
+        factor = _PetscFactor(ksp, m)
         try:
             ksp.setUp()
         except petsc.Error as err:
+            factor.release()
             raise SolverFailed(f"PETSc GAMG set-up failed: {err}") from None
-        return self._keep(_PetscFactor(ksp, m))
+        return self._keep(factor)
 
 
 class PetscHypre(PetscGAMG):

@@ -55,6 +55,27 @@ def test_petsc_lu_and_gamg_equal_superlu_on_a_3d_elastic_tangent(tmp_path, eleme
         assert 0 < factor.iterations < most  # the AMG works: a few dozen iterations, not hundreds
 
 
+@pytest.mark.parametrize("name", ["petsc", "petsc-gamg"])
+def test_a_dropped_factor_destroys_its_ksp_and_a_held_one_goes_at_the_next(tmp_path, name):
+    """Newton drops each factor before it assembles the next tangent: dropping it destroys the KSP
+    (its factors or AMG hierarchy and Krylov vectors), which petsc4py would keep. A factor still held
+    (a failed iteration's frame) is destroyed when the solver makes the next one: one KSP alive."""
+    built, a, b = elastic_box_system(tmp_path, "hex8", 3)
+    solver = linear.make_solver(name, built.mesh.nodes)
+    factor = solver.factorize(a)
+    ksp = factor._ksp
+    x = factor.solve(b)
+    assert np.linalg.norm(a @ x - b) <= 1e-9 * np.linalg.norm(b)
+    assert ksp.handle != 0
+    del factor
+    assert ksp.handle == 0  # destroyed with the factor
+    held = solver.factorize(a)
+    ksp = held._ksp
+    again = solver.factorize(a)
+    assert ksp.handle == 0 and held._ksp is None  # the held one was released for the next
+    assert np.abs(again.solve(b) - x).max() <= 1e-9 * np.abs(x).max()
+
+
 @pytest.mark.parametrize("name", ["petsc", "petsc-gamg", "petsc-hypre"])
 def test_a_singular_system_is_a_solver_failure(name):
     """A zero row with a nonzero right-hand side has no solution: SolverFailed (Newton then cuts back)."""

@@ -102,9 +102,8 @@ class DistributedModel(Model):
             mine = sp.csr_matrix((np.ones(owned_cols.shape[0], np.float32), owned_cols, row_ptr), shape=shape)
             theirs = sp.csr_matrix((np.ones(extra_rows.shape[0], np.float32),
                                     (extra_rows, np.concatenate([c for _, c in got]))), shape=shape)
-            union = (mine + theirs).tocsr()
-            union.sum_duplicates()
-            union.sort_indices()
+            union = mine + theirs
+            union.sum_duplicates()  # and its columns sorted
             row_ptr, owned_cols = union.indptr, union.indices
         mat = PETSc.Mat().createAIJ(((lay.hi - lay.lo, lay.n), (lay.hi - lay.lo, lay.n)), bsize=self.dim,
                                     comm=lay.comm)

@@ -9,7 +9,6 @@ import numpy as np
 
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
-from rockfrac.solve.backend import SolverFailed
 from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp
 
 
@@ -53,12 +52,7 @@ class DistributedSolver(OneFactorAlive):
         for k, v in self.options.items():
             opts[prefix + k] = v
         ksp.setFromOptions()
-        try:
-            ksp.setUp()
-        except PETSc.Error as err:
-            ksp.destroy()
-            raise SolverFailed(f"PETSc {self.name} set-up failed: {err}") from None
-        return self._keep(_Factor(ksp, a.layout))
+        return self._ready(_Factor(ksp, a.layout), f"PETSc {self.name} set-up")
 
     def solve(self, a: DistributedMatrix, b: np.ndarray) -> np.ndarray:
         return self.factorize(a).solve(b)

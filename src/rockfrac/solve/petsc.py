@@ -87,7 +87,14 @@ class OneFactorAlive:
         if last is not None:
             last.release()
 
-    def _keep(self, factor: F) -> F:
+    def _ready(self, factor: F, what: str) -> F:
+        """Set the factor's KSP up and keep it as the last one; SolverFailed naming ``what`` (its KSP
+        freed) where PETSc fails."""
+        try:
+            factor._ksp.setUp()
+        except _petsc().Error as err:
+            factor.release()
+            raise SolverFailed(f"{what} failed: {err}") from None
         self._last = weakref.ref(factor)
         return factor
 
@@ -150,13 +157,7 @@ class PetscDirect(_PetscBackend):
         m = self._matrix(a)
         ksp, _, _ = self._ksp(m)
         ksp.setFromOptions()
-        factor = _PetscFactor(ksp, m)
-        try:
-            ksp.setUp()
-        except _petsc().Error as err:
-            factor.release()
-            raise SolverFailed(f"PETSc LU (MUMPS) failed: {err}") from None
-        return self._keep(factor)
+        return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")
 
 
 class PetscGAMG(_PetscBackend):
@@ -181,13 +182,7 @@ class PetscGAMG(_PetscBackend):
             coords.destroy()
         ksp, _, _ = self._ksp(m)
         ksp.setFromOptions()
-        factor = _PetscFactor(ksp, m)
-        try:
-            ksp.setUp()
-        except petsc.Error as err:
-            factor.release()
-            raise SolverFailed(f"PETSc GAMG set-up failed: {err}") from None
-        return self._keep(factor)
+        return self._ready(_PetscFactor(ksp, m), "PETSc GAMG set-up")
 
 
 class PetscHypre(PetscGAMG):

@@ -26,7 +26,7 @@ def interrupted_then_resumed(case, tmp_path, at: int):
     return run_case(case, tmp_path / "cut", resume=True)
 
 
-@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "joint_3d"])
+@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "joint_3d", "nodal"])
 def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
     at = 70
     if name == "joint_3d":  # a 3D EP surface (tetrahedra, wedge interfaces in the VTK series)
@@ -37,6 +37,14 @@ def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
         d = tomllib.loads((folder / "joint.toml").read_text())
         d["mesh"]["file"] = str(folder / d["mesh"]["file"])
         at = 40
+    elif name == "nodal":  # a band of nodal embedded cracks, cut before and after the checkpoint
+        from test_crack_tracking import band_case
+
+        d = band_case({"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 12, "ny": 24,
+                       "inclusion": [0.0, 0.0067, 0.0034, 0.0167]}, {"tracking": "nonlocal", "tracking_length": 0.01})
+        d["embedded"].update(kinematics="nodal", kn=1e10, kt=1e10)
+        d["loading"].update(axial_displacement=1.2e-3, max_steps=120)
+        d["output"] = {"points": True}
     elif name == "rp_path":
         d = table1.cse_case("rp", axial_steps=120, control="path", axial_displacement=2e-3)
     elif name == "ep_implex":  # the extrapolation's history (last plastic jumps, step size) is kept

@@ -71,8 +71,15 @@ class Model:
         return n
 
     def __post_init__(self) -> None:
-        n = self.number_extras()
-        self.n_dofs = n
+        self.n_dofs = self.number_extras()
+        self._build_structure()
+        self.update_constant_force()
+        self.set_dirichlet(self.dirichlet)
+
+    def _build_structure(self) -> None:
+        """The sparsity pattern of the groups' dofs, the constant groups' part of the matrix."""
+        n = self.n_dofs
+        self._structure = tuple(g.structure_version() for g in self.groups)
         self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
         data = np.zeros(self.pattern.nnz)
         for g, slots in zip(self.groups, self.pattern.slots):
@@ -85,8 +92,14 @@ class Model:
                               for g, sl in zip(self.groups, self.pattern.slots)]
         self._const_data = data
         self._const_matrix = self.pattern.matrix(data)
-        self.update_constant_force()
+
+    def refresh_structure(self) -> bool:
+        """Make the pattern again if a group's dofs changed (cells cut by a nodal crack); True if so."""
+        if tuple(g.structure_version() for g in self.groups) == self._structure:
+            return False
+        self._build_structure()
         self.set_dirichlet(self.dirichlet)
+        return True
 
     def update_constant_force(self) -> None:
         """Collect the constant groups' constant element vectors (their in-situ stress) into f_int."""
@@ -135,6 +148,21 @@ class Model:
         for g in self.groups:
             g.commit()
 
+    def enrichment_version(self) -> tuple[int, ...] | None:
+        """The groups' enrichment counters (None: no group has enriched unknowns); a change means the
+        external forces' share on them must be made again (:meth:`enriched_surface_forces`)."""
+        versions = tuple(v for v in (g.enrichment_version() for g in self.groups) if v is not None)
+        return versions or None
+
+    def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray) -> np.ndarray:
+        """The enriched unknowns' share (n_dofs,) of uniform tractions (m, dim) [Pa] on edges (m, 2)."""
+        out = np.zeros(self.n_dofs)
+        for g in self.groups:
+            f = g.enriched_surface_forces(edges, tractions, self.n_dofs)
+            if f is not None:
+                out += f
+        return out
+
     def event(self) -> tuple[float, float] | None:
         """(committed, trial) values of the groups' event indicator (e.g. min det A / det A^e), or None.
 
@@ -149,6 +177,7 @@ class Model:
 
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
         """Residual and consistent tangent at u (trial state from the committed one at u_n)."""
+        self.refresh_structure()
         data = self._const_data.copy()
         f_int = self._const_matrix @ u
         if self._const_force is not None:

@@ -239,9 +239,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     counters: dict[str, float] = {}
     if resume:
         start, counters = _resume(out, built, case_text, distribution.rank if distribution is not None else 0)
-        history.restore({"work": np.array(counters.get("work", 0.0)), "u_prev": start.u[: history.n_u],
-                         "f_prev": (start.f_int if start.f_int is not None else np.zeros(built.model.n_dofs))[
-                             : history.n_u]})
+        history.restore({"work": np.array(counters.get("work", 0.0)),
+                         "released": np.array(counters.get("released", 0.0)), "u_prev": start.u,
+                         "f_prev": start.f_int if start.f_int is not None else np.zeros(built.model.n_dofs)})
+        history.after_cuts(start.u, np.zeros(built.model.n_dofs))  # f_int does not depend on the loads
     case_sha = checkpoint.text_sha256(case_text)
     if lead:
         (out / "case.toml").write_text(case_text, encoding="utf-8")
@@ -300,6 +301,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
 
         def counts() -> dict[str, float]:
             return {"peak": axial_peak["F_axial"], "iters": run["iters"], "work": history.work,
+                    "released": history.released,
                     **{f"stop_peak.{q}": v for q, v in peaks.items()}}
 
         observers.append(Checkpoints(out, case.output.checkpoint_every, model, counts, hist, case_sha, log,

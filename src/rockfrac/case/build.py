@@ -188,7 +188,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     if part is not None and extra_part:
         part = part.with_extras(np.concatenate(extra_part))
     if distribution is None or part is None:
-        model = Model(mesh.n_nodes, bulks + cohesives, np.zeros(0, dtype=np.int64), dim=mesh.dim)
+        extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
+        model = Model(mesh.n_nodes, bulks + cohesives + extras, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:
         model = distribution.make_model(mesh, bulks + cohesives, part)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0

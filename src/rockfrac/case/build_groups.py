@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from rockfrac.case.build_mesh import mean_cell_size
@@ -13,6 +15,8 @@ from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
 from rockfrac.elements.ede_cracks import cut_along, cut_by_plane
+from rockfrac.elements.ede_enrichment import EnrichmentRegistry
+from rockfrac.elements.ede_nodal import NodalEmbeddedDruckerPrager
 from rockfrac.elements.ede_paths import Exchange
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
@@ -107,6 +111,21 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
 
 
+def refuse_nodal(case: Case, mesh: Mesh, path: str, ranks: bool) -> None:
+    """What [embedded] kinematics = 'nodal' does not do yet, refused by name before any step."""
+    why = None
+    if mesh.dim != 2:
+        why = f"it is 2D (quad4, tri3 cells); this mesh is {mesh.cell_type}"
+    elif ranks:
+        why = "it runs on one process (not on several MPI ranks yet)"
+    elif case.initial is not None:
+        why = "its enrichment takes no body force or in-situ stress yet: remove [initial]"
+    elif any(st.gravity is not None or st.in_situ for st in case.stage_sections):
+        why = "its enrichment takes no body force or in-situ stress yet: remove the stages' gravity and in_situ"
+    if why:
+        raise CaseError(f"{path}: [embedded] kinematics = 'nodal': {why}")
+
+
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
                      exchange: Exchange | None = None) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
@@ -119,6 +138,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
                         f"{mesh.cell_type} (in a tetrahedron whose grad f_S is far from the plane's normal, "
                         "sliding raises the yield function: a cut plane does not converge yet): mesh "
                         "the drucker_prager regions with hexahedra, or remove [embedded]")
+    if emb is not None and emb.kinematics == "nodal":
+        refuse_nodal(case, mesh, path, owned is not None)
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
@@ -132,10 +153,17 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
-            ede = EmbeddedDruckerPrager(
-                mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), band=emb.band.value,
-                plane_strain=not general, tracking=emb.tracking, max_cracks=emb.max_cracks,
-                tracking_length=emb.tracking_length, region=region, cell_ids=cells)
+            kinds: dict[str, Any] = dict(band=emb.band.value, plane_strain=not general, tracking=emb.tracking,
+                                         max_cracks=emb.max_cracks, tracking_length=emb.tracking_length,
+                                         region=region, cell_ids=cells)
+            if emb.kinematics == "nodal":
+                assert emb.kn is not None and emb.kt is not None  # the schema requires them
+                ede: EmbeddedDruckerPrager = NodalEmbeddedDruckerPrager(
+                    mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb), kt=emb.kt, kn=emb.kn,
+                    **kinds)
+            else:
+                ede = EmbeddedDruckerPrager(mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb),
+                                            **kinds)
             if owned is not None:
                 ede.serial_index = np.flatnonzero(owned[every])  # its cells' places among the whole group's
             full[id(ede)] = every
@@ -152,6 +180,11 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
     for g in groups:  # a plane-strain hex8 group: a registry of its own (its onsets' search over the ranks)
         if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2 and not general:
             share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
+    nodal = [g for g in groups if isinstance(g, NodalEmbeddedDruckerPrager)]
+    if nodal:  # one enrichment for every nodal group (a crack crosses regions), its unknowns owned by the first
+        registry = EnrichmentRegistry(nodal, mesh.cells)
+        for k, g in enumerate(nodal):
+            g.attach(registry, first=k == 0)
     if emb is not None and emb.cracks:
         if general:
             cut_initial_planes(emb, [g for g in groups if isinstance(g, EmbeddedDruckerPrager)], path)

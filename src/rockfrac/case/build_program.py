@@ -20,6 +20,7 @@ from rockfrac.errors import CaseError
 from rockfrac.fem.loads import (
     StressField,
     body_force,
+    edge_normals,
     edge_pressure,
     edge_stress_traction,
     edge_traction,
@@ -430,12 +431,19 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
                 raise CaseError(f"{path}: {key} in_situ.{group}: not on the outer boundary (a crack face?)")
             in_situ_factor[row] = factor
         f_end = np.zeros(dim * mesh.n_nodes)
+        surface_edges, surface_tractions = [], []  # 2D: each loaded edge and its traction
         for group, p in pressure.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
+            if dim == 2 and sides.size:
+                surface_edges.append(sides)
+                surface_tractions.append(-p * edge_normals(mesh.nodes, sides)[0])
         for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
+            if dim == 2 and sides.size:
+                surface_edges.append(sides)
+                surface_tractions.append(np.broadcast_to(np.asarray(vec, dtype=float), (sides.shape[0], dim)))
         f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)
         if initial is not None:
             f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model)
@@ -448,7 +456,9 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         name = st.name or f"stage {k + 1}"
         stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model, monitors, thickness,
                                                                  key, path),
-                            source=source, dirichlet=dofs))
+                            source=source, dirichlet=dofs,
+                            surface_edges=np.vstack(surface_edges) if surface_edges else None,
+                            surface_tractions=np.vstack(surface_tractions) if surface_tractions else None))
         stops.append(st.stop)
         sections.append(st)
     u0 = model.initial_unknowns()

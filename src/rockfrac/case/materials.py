@@ -17,6 +17,7 @@ from rockfrac.values import (
     Length,
     Modulus,
     Rate,
+    Stiffness,
     Strength,
 )
 from rockfrac.values import Section as _Section
@@ -136,6 +137,14 @@ class EmbeddedSection(_Section):
         "point = [x, y, z], normal = [nx, ny, nz], c_p = ... (a plane, 3D)"))
     max_cracks: Count = Field(1, description="tracking 'local' or 'nonlocal': most cracks started (those "
                             "of cracks included); further cuts continue them from their tips")
+    kinematics: Literal["elemental", "nodal"] = Field(
+        "elemental", description="'elemental': one constant jump per cut cell, condensed in it (the paper's "
+        "AES element); 'nodal': the cut cell's two sides deform on their own and the jump is a nodal field, "
+        "continuous along the crack (shifted Heaviside enrichment; no stress locking across a slanted band; "
+        "2D, tracking 'local' or 'nonlocal', needs kn and kt)")
+    kn: Stiffness | None = Field(None, description="kinematics = 'nodal': normal penalty stiffness of the crack [Pa/m]")
+    kt: Stiffness | None = Field(None, description="kinematics = 'nodal': tangential penalty stiffness of the crack "
+                                 "[Pa/m]")
 
     @model_validator(mode="after")
     def _residual_below_peak(self) -> EmbeddedSection:
@@ -148,4 +157,12 @@ class EmbeddedSection(_Section):
             raise ValueError("residual values (c_r, phi_r) must not exceed the peak ones")
         if self.c_p != "eq28" and self.c_p <= 0:
             raise ValueError("c_p must be > 0 or 'eq28'")
+        if self.kinematics == "nodal":
+            if self.kn is None or self.kt is None:
+                raise ValueError("kinematics = 'nodal' needs the crack's penalty stiffnesses kn and kt [Pa/m]")
+            if self.tracking == "none":
+                raise ValueError("kinematics = 'nodal' needs a continuous crack path: tracking = 'local' or "
+                                 "'nonlocal' (with tracking = 'none' each cell is cut on its own)")
+        elif self.kn is not None or self.kt is not None:
+            raise ValueError("kn and kt are the penalty of kinematics = 'nodal' (the elemental jump is rigid-plastic)")
         return self

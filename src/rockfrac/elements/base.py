@@ -80,6 +80,24 @@ class ElementGroup(ABC):
         """Extra dofs whose equation the Dirichlet set already imposes (prescribed to zero instead)."""
         return np.zeros(0, dtype=np.int64)
 
+    def structure_version(self) -> int:
+        """A counter that changes whenever the group's ``dofs`` change (cells cut by a nodal crack); the
+        model then makes its sparsity pattern again. Most groups' dofs never change: 0."""
+        return 0
+
+    def companions(self) -> list[ElementGroup]:
+        """Groups this one adds to the model beside itself (a nodal crack's cut cells and unknowns)."""
+        return []
+
+    def enrichment_version(self) -> int | None:
+        """A counter that grows whenever the group's enriched unknowns change (None: it has none)."""
+        return None
+
+    def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray | None:
+        """The enriched unknowns' share (n_dofs,) of uniform tractions (m, dim) [Pa] on boundary edges
+        (m, 2) (a crack crossing a loaded boundary splits its load between the two sides); None: no share."""
+        return None
+
     # -- state -------------------------------------------------------------------------------
     def set_initial_stress(self, stress: StressField) -> None:
         """Start from the in-situ stress field ``stress`` (points -> Voigt stresses [Pa]) instead of a
@@ -190,6 +208,11 @@ class ElementGroup(ABC):
     def surface_energy(self) -> float:
         """The work of the traction laws on the group's crack surfaces up to the committed state [J]
         (its share of the dissipation that a surface law defines; 0 for a bulk group)."""
+        return 0.0
+
+    def recut_energy(self) -> float:
+        """The stored energy [J] (per unit thickness in 2D) that the group's cells gained, at fixed
+        displacement, when they were cut and integrated anew (nodal embedded cracks; 0 for others)."""
         return 0.0
 
     def viscous_energy(self) -> float | None:

@@ -62,7 +62,29 @@ class EmbeddedDruckerPrager(EmbeddedCells):
     def event(self) -> float:
         """Min det A / det A^e (eq. 7-8) over the trial (converged, uncommitted) plastic points of
         cells that may still localize; 1 if there are none."""
-        return self._scan(self.trial, self.trial_sigma, exact_cells=False)[0]
+        if not self.tip_events:
+            return self._scan(self.trial, self.trial_sigma, exact_cells=False)[0]
+        return self._scan(self.trial, self.trial_sigma, self._eligible(), exact_cells=False)[0]
+
+    #: the event indicator over the cells that may open next only (:meth:`_eligible`), so that every
+    #: crack tip's onset is located; the elemental EDE keeps its first version's (every candidate)
+    tip_events = False
+
+    def _eligible(self) -> np.ndarray | None:
+        """The cells that may open next: every one (None) while a new crack may start, else the crack
+        tips (a cell beside a crack waits for its tip, so it is no event); with tip events, less the
+        cells that were ready at the last commit but wait a step (tracking: an elastic cell at a tip
+        made in that step), which open at the next commit whatever the step does."""
+        if self.tracking == "none":
+            return None
+        cells = self._tip_cells() if self.paths.cracks >= self.max_cracks else None
+        if not self.tip_events:
+            return cells
+        if not self.deferred.any():
+            return cells
+        if cells is None:
+            cells = np.arange(self.cells.shape[0])
+        return cells[~self.deferred[cells]]
 
     SCREEN_SWEEP = 90  # in-plane normals of the compiled screen (plane strain)
     SCREEN_POLAR, SCREEN_AZIMUTH = 12, 48  # the compiled screen's hemisphere grid (general 3D)
@@ -81,6 +103,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         cells = self._candidates(state)
         tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
         cells = np.union1d(cells, tips).astype(np.int64)
+        if eligible is not None and self.tip_events:  # the indicator and onsets over the cells that may open
+            cells = np.intersect1d(cells, eligible)
         near = self._tip_stresses() if self.tracking == "nonlocal" else {}
         e_of, qi, screened = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
         if cells.size:
@@ -182,10 +206,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         paths = self.paths
         if self.tracking != "none":
             paths.current()
-        eligible = None
-        if self.tracking != "none" and paths.cracks >= self.max_cracks:
-            eligible = self._tip_cells()  # only crack tips can open: no new crack allowed
-        best, where = self._scan(self.state, self.sigma, eligible)
+        best, where = self._scan(self.state, self.sigma, self._eligible())
         ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
         if self.tracking == "none":
             for ratio, e in ready:
@@ -198,6 +219,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         pending = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:2])
         k = paths.groups.index(self)
         tips = paths.tip_cells_global(k)
+        self.deferred[:] = False
         progress = True
         while pending and progress:  # a newly cut cell may give the next one its tip...
             progress = False
@@ -219,7 +241,13 @@ class EmbeddedDruckerPrager(EmbeddedCells):
                 paths.announce(gcell)
                 pending.remove(cand)
                 progress = True
-        return best
+        if not ready or not self.tip_events:
+            return best
+        # the indicator after the cuts, over the cells that may open next (the new tips): an onset in
+        # the next step is then located as an event
+        self.deferred[[int(paths.owner[c[2]][1]) for c in pending if paths.owner[c[2]][0] == k]] = True
+        paths.current()
+        return self._scan(self.state, self.sigma, self._eligible(), exact_cells=False)[0]
 
     # -- crack path (2D) ---------------------------------------------------------------------
     @property

@@ -27,8 +27,9 @@ def shear_directions(sigma: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.n
 class EmbeddedCells(DruckerPragerSolid):
     """The cells of :class:`rockfrac.elements.ede.EmbeddedDruckerPrager` apart from their localization."""
 
-    checkpoint_attrs = ("state", "sigma", "dissipated", "crack_dissipated", "surface_dissipated", "e_state",
-                        "gradf", "active", "anchor", "segments", "sections", "last_event", "crack_count")
+    checkpoint_attrs: tuple[str, ...] = ("state", "sigma", "dissipated", "crack_dissipated", "surface_dissipated", "e_state",
+                        "gradf", "active", "anchor", "segments", "sections", "last_event", "crack_count",
+                        "deferred")
 
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays, the onsets (a list of records) packed into arrays."""
@@ -112,6 +113,7 @@ class EmbeddedCells(DruckerPragerSolid):
         self._stuck = np.zeros(n_el, dtype=bool)
         self._released = np.zeros(n_el, dtype=bool)
         self.last_event = 1.0  # min det ratio of the committed state over cells that may localize
+        self.deferred = np.zeros(cells.shape[0], dtype=bool)  # ready at the last commit, opening at the next
 
     # -- state -----------------------------------------------------------------------------
     def begin_step(self) -> None:

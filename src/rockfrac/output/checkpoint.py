@@ -38,8 +38,9 @@ from rockfrac.errors import CaseError
 FILE = "checkpoint.npz"
 LEGACY = "checkpoint.pkl"  # rockfrac <= 0.1 wrote pickles: never loaded (a pickle can run code)
 FORMAT = "rockfrac-checkpoint"
-VERSION = 3  # 2: embedded groups keep the z-face trace of their cut hexahedra ("sections"); 3: EP cohesive
-# groups keep their viscous regularisation's overstress and dissipation
+VERSION = 4  # 2: embedded groups keep the z-face trace of their cut hexahedra ("sections"); 3: EP cohesive
+# groups keep their viscous regularisation's overstress and dissipation; 4: embedded groups keep the cells
+# whose opening waits a step ("deferred"), nodal embedded cracks their cut cells
 
 
 @dataclass

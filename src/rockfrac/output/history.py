@@ -120,20 +120,35 @@ class History:
         extra = [m for m in self.means if m not in CRACK]
         self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
         self.viscous = model.reduce_any(any(g.viscous_energy() is not None for g in model.groups))
+        # a model whose cracks cut cells as they grow (nodal embedded cracks): each cut changes the
+        # discrete system at the committed displacement, and the internal forces of the new one,
+        # not those the step converged to, start the next step's work
+        self.cuts = model.enrichment_version() is not None
+        self.reserved.append("E_released")
         self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + extra + ["time"]
                         + group_cols + [c for m in monitors for c in m.columns] + ENERGY
-                        + (["D_viscous"] if self.viscous else []))
+                        + (["D_viscous"] if self.viscous else []) + (["E_released"] if self.cuts else []))
+        self.n_w = model.n_dofs if self.cuts else self.n_u  # the dofs whose forces work (the enrichments' too)
         self.e0 = self.elastic_energy(u0)
         self.work = 0.0
-        self.u_prev = u0[: self.n_u].copy()
+        self.released = 0.0
+        self.u_prev = u0[: self.n_w].copy()
         self.f_prev = self._initial_f_int(u0, f0)
+        self.f_post: np.ndarray | None = None  # internal forces of the system after the last commit's cuts
 
     def _initial_f_int(self, u0: np.ndarray, f0: np.ndarray) -> np.ndarray:
         """f_int at t = 0 (zero for a stress-free start; else the state's internal forces)."""
         if not np.any(f0) and not np.any(u0):
-            return np.zeros(self.n_u)
+            return np.zeros(self.n_w)
         self.model.begin_step()
-        return self.model.assemble(u0, u0, f0).f_int[: self.n_u].copy()
+        return self.model.assemble(u0, u0, f0).f_int[: self.n_w].copy()
+
+    def after_cuts(self, u: np.ndarray, f_ext: np.ndarray) -> None:  # f_ext: shapes only (f_int is the use)
+        """The internal forces of the committed system at u (cells cut at the commit included), which
+        start the next step's work (models whose cracks cut cells; an assembly per step)."""
+        if self.cuts:
+            self.model.begin_step()
+            self.f_post = self.model.assemble(u, u, f_ext).f_int[: self.n_w].copy()
 
     @property
     def notes(self) -> list[str]:
@@ -147,12 +162,14 @@ class History:
         return self.model.reduce_sum(sum(g.dissipated_energy() for g in self.model.groups)) / self.thickness
 
     def state(self) -> dict[str, np.ndarray]:
-        return {"work": np.array(self.work), "u_prev": self.u_prev, "f_prev": self.f_prev}
+        return {"work": np.array(self.work), "released": np.array(self.released), "u_prev": self.u_prev,
+                "f_prev": self.f_prev}
 
     def restore(self, saved: dict[str, np.ndarray]) -> None:
         self.work = float(saved["work"])
-        self.u_prev = saved["u_prev"].copy()
-        self.f_prev = saved["f_prev"].copy()
+        self.released = float(saved.get("released", 0.0))
+        self.u_prev = saved["u_prev"][: self.n_w].copy()
+        self.f_prev = saved["f_prev"][: self.n_w].copy()
 
     def row(self, info: StepInfo, rec: dict | None) -> dict:
         """Every column of the step (committed state)."""
@@ -176,17 +193,31 @@ class History:
             else:
                 rel = u[m.nodes[1]].mean(axis=0) - u[m.nodes[0]].mean(axis=0)
                 row[m.name] = float(rel @ m.direction)
-        f_now = info.f_int[: self.n_u]
-        u_now = info.u[: self.n_u]
-        self.work += 0.5 * float((self.f_prev + f_now) @ (u_now - self.u_prev)) / self.thickness
+        f_now = info.f_int[: self.n_w]
+        u_now = info.u[: self.n_w]
+        du = u_now - self.u_prev
+        start = self.f_prev
+        if self.f_post is not None:  # the last commit cut cells: the reactions jumped to the new system's,
+            free = self.model.free[self.model.free < self.n_w]  # and its unbalance on the free dofs is
+            jump = self.f_post[free] - self.f_prev[free]  # released as the step relaxes it (E_released)
+            self.released -= 0.5 * float(jump @ du[free]) / self.thickness
+            start = self.f_post.copy()
+            start[free] = self.f_prev[free]
+        self.work += 0.5 * float((start + f_now) @ du) / self.thickness
         self.u_prev, self.f_prev = u_now.copy(), f_now.copy()
+        self.after_cuts(info.u, f_ext)
         e_el, dissipated = self.elastic_energy(info.u), self.dissipated()
+        released = self.released
+        if self.cuts:  # less the stored energy the cut cells' new quadrature gave them at fixed u
+            released -= self.model.reduce_sum(sum(g.recut_energy() for g in self.model.groups)) / self.thickness
         row.update(W_external=self.work, E_elastic=e_el, D_dissipated=dissipated,
-                   energy_error=self.work - (e_el - self.e0) - dissipated,
+                   energy_error=self.work - (e_el - self.e0) - dissipated - released,
                    D_surface_law=self.model.reduce_sum(sum(g.surface_energy() for g in self.model.groups))
                    / self.thickness)
         if self.viscous:
             row["D_viscous"] = self.viscous_dissipated()
+        if self.cuts:
+            row["E_released"] = released
         return row
 
     def viscous_dissipated(self) -> float:

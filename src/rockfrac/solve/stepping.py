@@ -42,6 +42,10 @@ class Stage:
     path: PathSpec | None = None
     source: str = ""  # the input that sets this stage's loads, named in a failure ("[loading] confinement")
     dirichlet: np.ndarray | None = None  # the stage's prescribed dofs (sorted)
+    # uniform tractions on boundary edges at the end of the stage, (m, 2) mesh nodes and (m, dim) [Pa]:
+    # what a crack with enriched unknowns needs to split a boundary's load between its two sides
+    surface_edges: np.ndarray | None = None
+    surface_tractions: np.ndarray | None = None
 
     def end_values(self, dofs: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Prescribed values at the end of the stage on ``dofs`` (the model's Dirichlet set in this
@@ -155,6 +159,7 @@ def run_stages(
     f_ref = f_start
     previous = np.full(model.n_dofs, np.nan)  # prescribed values at the end of the last stage (nan: free)
     count = 0 if start is None else start.count
+    refresh = _EnrichedLoads(model, stages)
     for index, stage in enumerate(stages):
         if start is not None and index < start.stage:
             previous = _end_map(model, stage, previous)
@@ -168,6 +173,7 @@ def run_stages(
         else:
             d_start = np.where(np.isnan(previous[dofs]), u[dofs], previous[dofs])
         d_end = stage.end_values(dofs, d_start)
+        refresh()
         loads = Loads(d_start, d_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
         last_size: dict[str, float] = {}  # the increment of the last converged step, by control
@@ -260,6 +266,8 @@ def run_stages(
                     size[mode] *= frac
                     continue
             model.commit()
+            if refresh():  # a crack crossed into a loaded boundary's cells: its share of the loads
+                loads = Loads(loads.d0, loads.dd, f_start, stage.f_ext_end - f_start)
             last_size = {mode: size[mode] if mode == "path" else res.lam - lam}
             if stage.path is not None and path_nominal is None:
                 first = stage.path.constraint(Committed(res.u, u, res.lam, loads, u_ref, f_ref))
@@ -293,6 +301,34 @@ def run_stages(
         previous = _end_map(model, stage, previous, d_end)
         f_start = stage.f_ext_end
     return RunResult(True, count, "all stages completed", u)
+
+
+class _EnrichedLoads:
+    """Keeps the stages' external forces on a model's enriched unknowns (a crack's, see
+    rockfrac.elements.ede_enrichment) up to date: called after every change, it adds to each stage's
+    own forces the share of its boundary tractions that the enrichment takes now (in place, so
+    that a stage's start forces, the previous stage's end ones, follow). Returns True if they changed."""
+
+    def __init__(self, model: Model, stages: list[Stage]):
+        self.model = model
+        self.stages = stages
+        self.active = model.enrichment_version() is not None and any(
+            s.surface_edges is not None and s.surface_edges.size for s in stages)
+        self.own = [s.f_ext_end.copy() for s in stages] if self.active else []
+        self.seen: tuple[int, ...] | None = None
+
+    def __call__(self) -> bool:
+        if not self.active:
+            return False
+        version = self.model.enrichment_version()
+        if version == self.seen:
+            return False
+        self.seen = version
+        for stage, own in zip(self.stages, self.own):
+            stage.f_ext_end[:] = own
+            if stage.surface_edges is not None and stage.surface_tractions is not None and stage.surface_edges.size:
+                stage.f_ext_end[:] += self.model.enriched_surface_forces(stage.surface_edges, stage.surface_tractions)
+        return True
 
 
 def _end_map(model: Model, stage: Stage, previous: np.ndarray, d_end: np.ndarray | None = None) -> np.ndarray:

@@ -1,0 +1,177 @@
+"""Compiled kernel of the nodal embedded crack (rockfrac.elements.ede_nodal): plane-strain cells
+with the shifted Heaviside enrichment of their nodes.
+
+Element vector of a cell: (u, q) = (u_0x, u_0y, ..., q_0x, q_0y, ...), u the nodal displacements,
+q the enrichment of each node. In a cut cell the displacement is
+
+    u(x) = sum_a N_a u_a + sum_a e_a (H(x) - H_a) N_a q_a,
+
+H = 1 on the + side of the crack and 0 on the other, H_a = H(x_a), e_a = 1 where node a carries
+this crack's enrichment: each side is integrated on its own (its quadrature points of
+rockfrac.fem.cut_cell, each with its own Drucker-Prager state), and the jump across the crack is
+[[u]](x) = sum_a e_a N_a(x) q_a, whose traction (rockfrac.laws.embedded_penalty) acts on the q's at
+the crack's two points. An uncut cell is the Drucker-Prager cell of its u's. The q of a node that
+carries no enrichment is held at zero elsewhere (rockfrac.elements.ede_enrichment).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from rockfrac.compiled import inner
+from rockfrac.elements.plastic_solid import dp_element_into, element_scratch, n_chunks
+from rockfrac.laws import drucker_prager as dp
+from rockfrac.laws.embedded_penalty import crack_return
+from rockfrac.threads import parallel_kernel
+
+ST_OK = 0
+ST_DP_FAIL = -3
+ST_CRACK_FAIL = -4
+
+
+@inner
+def _side_point(g, factor, n_nodes, bt):
+    """bt (3, 4 n_nodes) = [B, B_q] at a side point: B of the gradients g (n_nodes, 2) on the u's and
+    factor[a] B_a on the q's (plane strain, rows xx, yy, xy, engineering shear)."""
+    bt[:, :] = 0.0
+    for a in range(n_nodes):
+        gx, gy = g[a, 0], g[a, 1]
+        for part in range(2):
+            f = 1.0 if part == 0 else factor[a]
+            c = 2 * a + part * 2 * n_nodes
+            bt[0, c] = f * gx
+            bt[1, c + 1] = f * gy
+            bt[2, c] = f * gy
+            bt[2, c + 1] = f * gx
+
+
+@inner
+def _cut_cell(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, k, mu, ce,
+              law, kt, kn, cstate_new, csigma, ccp_new, fe, ke):
+    """One cut cell (module doc): its sides' Drucker-Prager points and its crack points. Returns a status."""
+    n_nodes = enr.shape[0]
+    nd = 4 * n_nodes
+    bt = np.empty((3, nd))
+    eps6 = np.zeros(6)
+    c6 = np.empty((6, 6))
+    work = np.empty((5, 6))
+    factor = np.empty(n_nodes)
+    cb = np.empty((3, nd))
+    idx = np.array([0, 1, 3])
+    fe[:] = 0.0
+    ke[:, :] = 0.0
+    status = ST_OK
+    for p in range(cw.shape[0]):
+        w = cw[p]
+        if w == 0.0:
+            continue
+        for a in range(n_nodes):
+            factor[a] = enr[a] * (cside[p] - chnode[a])
+        _side_point(cgrads[p], factor, n_nodes, bt)
+        for i in range(3):
+            acc = 0.0
+            for j in range(nd):
+                acc += bt[i, j] * ue[j]
+            eps6[idx[i]] = acc
+        st = dp.return_map_into(eps6, cstate[p], dp_p, k, mu, ce, work, csigma[p], c6, cstate_new[p])
+        if st < 0:
+            status = ST_DP_FAIL
+            continue
+        for i in range(3):
+            for j in range(nd):
+                acc = 0.0
+                for m in range(3):
+                    acc += c6[idx[i], idx[m]] * bt[m, j]
+                cb[i, j] = acc
+        for a in range(nd):
+            fa = 0.0
+            for i in range(3):
+                fa += bt[i, a] * csigma[p, idx[i]]
+            fe[a] += w * fa
+            for b in range(nd):
+                acc = 0.0
+                for i in range(3):
+                    acc += bt[i, a] * cb[i, b]
+                ke[a, b] += w * acc
+    tr = np.empty(2)
+    dloc = np.empty((2, 2))
+    dg = np.empty((2, 2))
+    tg = np.empty(2)
+    q0 = 2 * n_nodes
+    for kk in range(cwk.shape[0]):
+        jx, jy = 0.0, 0.0
+        for a in range(n_nodes):
+            s = enr[a] * cshape[kk, a]
+            jx += s * ue[q0 + 2 * a]
+            jy += s * ue[q0 + 2 * a + 1]
+        tx, ty, nx, ny = cframe[0, 0], cframe[0, 1], cframe[1, 0], cframe[1, 1]
+        st = crack_return(tx * jx + ty * jy, nx * jx + ny * jy, ccp[kk], law, kt, kn, ccp_new[kk], tr, dloc)
+        if st < 0:
+            status = ST_CRACK_FAIL
+        tg[0] = tr[0] * tx + tr[1] * nx
+        tg[1] = tr[0] * ty + tr[1] * ny
+        for i in range(2):  # D_g = R^T D R, R rows (t, n)
+            for j in range(2):
+                dg[i, j] = (cframe[0, i] * (dloc[0, 0] * cframe[0, j] + dloc[0, 1] * cframe[1, j])
+                            + cframe[1, i] * (dloc[1, 0] * cframe[0, j] + dloc[1, 1] * cframe[1, j]))
+        wk = cwk[kk]
+        for a in range(n_nodes):
+            sa = wk * enr[a] * cshape[kk, a]
+            if sa == 0.0:
+                continue
+            for i in range(2):
+                fe[q0 + 2 * a + i] += sa * tg[i]
+            for b in range(n_nodes):
+                sab = sa * enr[b] * cshape[kk, b]
+                if sab == 0.0:
+                    continue
+                for i in range(2):
+                    for j in range(2):
+                        ke[q0 + 2 * a + i, q0 + 2 * b + j] += sab * dg[i, j]
+    return status
+
+
+@parallel_kernel(cost=1.0e-6)  # s per item, one thread (an estimate: a Drucker-Prager cell's, dp_blocks')
+def uncut_blocks(grads, wdet, ue, dp_old, dp_p, cut_slot, dp_new, sigma, fe, ke, status):
+    """The uncut cells of a nodal embedded-crack group as Drucker-Prager cells (dp_blocks' arrays); a
+    cut cell (cut_slot >= 0) gives zero blocks and holds its Gauss points' state (its sides are
+    :func:`cut_blocks`')."""
+    n = grads.shape[0]
+    dp_k, dp_mu = dp.moduli(dp_p)
+    dp_ce = dp.elastic_matrix(dp_p)
+    m = n_chunks(n)
+    for ch in nb.prange(m):
+        scratch = element_scratch(grads.shape[2], grads.shape[3])
+        for e in range(ch * n // m, (ch + 1) * n // m):
+            if cut_slot[e] >= 0:
+                fe[e, :] = 0.0
+                ke[e, :, :] = 0.0
+                for q in range(dp_old.shape[1]):
+                    for s in range(dp_old.shape[2]):
+                        dp_new[e, q, s] = dp_old[e, q, s]
+                status[e] = ST_OK
+                continue
+            st = dp_element_into(grads[e], wdet[e], ue[e], dp_old[e], dp_p, dp_k, dp_mu, dp_ce, dp_new[e], sigma[e],
+                                 fe[e], ke[e], scratch)
+            status[e] = ST_DP_FAIL if st < 0 else ST_OK
+
+
+@parallel_kernel(cost=2.0e-5)  # s per item, one thread (an estimate: 12 side points and 3 crack points a cell)
+def cut_blocks(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, law, kt, kn, cstate_new,
+               csigma, ccp_new, fe, ke, status):
+    """The cut cells (module doc): element vectors fe (n_cut, 4 n_nodes) and blocks ke on their (u, q).
+
+    ue (n_cut, 4 n_nodes); enr (n_cut, n_nodes) 0/1; the sides: cw (n_cut, m) weights [m^2] (0: unused),
+    cside (n_cut, m) 1 on the + side, cgrads (n_cut, m, n_nodes, 2), cstate/cstate_new (n_cut, m,
+    N_STATE), csigma (n_cut, m, 6); chnode (n_cut, n_nodes) H_a; the crack: cshape (n_cut, k, n_nodes)
+    N_a at its points, cwk (n_cut, k) weights [m], cframe (n_cut, 2, 2) rows (t, n), ccp/ccp_new (n_cut,
+    k, N_CP); dp_p the sides' Drucker-Prager parameters; law: Sect. 4.1 parameters; kt, kn [Pa/m].
+    status (n_cut,): 0 or a failure."""
+    n = ue.shape[0]
+    dp_k, dp_mu = dp.moduli(dp_p)
+    dp_ce = dp.elastic_matrix(dp_p)
+    for c in nb.prange(n):
+        status[c] = _cut_cell(ue[c], enr[c], cw[c], cside[c], cgrads[c], chnode[c], cstate[c], cshape[c], cwk[c],
+                              cframe[c], ccp[c], dp_p, dp_k, dp_mu, dp_ce, law, kt, kn, cstate_new[c], csigma[c],
+                              ccp_new[c], fe[c], ke[c])

@@ -1,0 +1,113 @@
+"""A 2D cell cut by a straight crack: its two sides' quadrature and the crack's points (nodal
+embedded cracks, rockfrac.elements.ede_nodal).
+
+Each side of the line is a convex polygon (the cell clipped by the line), fanned into triangles
+that carry the three-point rule (exact for quadratics in x): every point gets its reference
+coordinates in the cell (the isoparametric map inverted by Newton for a quadrilateral), its shape
+gradients and its weight (the triangle's area share) [m^2 per unit thickness]. The crack's points
+are the two ends of its chord through the cell and its middle, with Simpson's weights (1, 4, 1)/6
+of the chord's length: Newton-Cotes along the crack (as for cohesive surfaces: no traction
+oscillations under a stiff penalty), exact for the quadratic shape functions of a quadrilateral
+along a line, so that a uniform traction balances a uniform stress (the patch test); the ends come
+with the cell edge each lies on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rockfrac.fem.reference import TRIANGLE_RULE, ReferenceElement
+
+
+@dataclass
+class CutCell:
+    """Quadrature of a cut cell: side points (xi (m, 2), x (m, 2) [m], weights (m,) [m^2], side (m,) 1
+    on the + side (where (x - point) . n > 0), 0 on the other), the crack's points (its two ends and
+    its middle: xi (3, 2), x (3, 2) [m], weights (3,) [m]) and the cell edge each end lies on (2,),
+    edge k from node k to node k + 1."""
+
+    xi: np.ndarray
+    x: np.ndarray
+    weights: np.ndarray
+    side: np.ndarray
+    crack_xi: np.ndarray
+    crack_x: np.ndarray
+    crack_weights: np.ndarray
+    crack_edges: np.ndarray
+
+
+def clip(polygon: np.ndarray, point: np.ndarray, normal: np.ndarray, sign: float) -> np.ndarray:
+    """The part of a convex polygon (k, 2), counter-clockwise, where sign (x - point) . n >= 0."""
+    d = sign * ((polygon - point) @ normal)
+    out = []
+    k = polygon.shape[0]
+    for a in range(k):
+        b = (a + 1) % k
+        if d[a] >= 0.0:
+            out.append(polygon[a])
+        if min(d[a], d[b]) < 0.0 < max(d[a], d[b]):
+            out.append(polygon[a] + d[a] / (d[a] - d[b]) * (polygon[b] - polygon[a]))
+    return np.array(out)
+
+
+def inverse_map(ref: ReferenceElement, xe: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Reference coordinates (m, 2) of physical points x (m, 2) [m] in the cell with nodes xe (k, 2)."""
+    if ref.simplex:
+        jac = (xe[1:] - xe[0]).T  # x = x0 + J xi
+        return np.linalg.solve(jac, (x - xe[0]).T).T
+    xi = np.zeros_like(x)
+    for _ in range(50):
+        n = ref.shape(xi)
+        r = n @ xe - x
+        dn = ref.shape_gradients(xi)
+        jac = np.einsum("pai,aj->pji", dn, xe)  # dx_j / dxi_i
+        step = np.linalg.solve(jac, r[..., None])[..., 0]
+        xi -= step
+        if np.abs(step).max() <= 1e-14:
+            break
+    return xi
+
+
+def cut_cell(ref: ReferenceElement, xe: np.ndarray, point: np.ndarray, normal: np.ndarray) -> CutCell:
+    """The quadrature of the cell with nodes xe (k, 2) [m] (counter-clockwise) cut by the line through
+    ``point`` with unit ``normal`` (module doc)."""
+    rule_xi, rule_w = TRIANGLE_RULE
+    xs, ws, sides = [], [], []
+    for side, sign in ((1, 1.0), (0, -1.0)):
+        poly = clip(xe, point, normal, sign)
+        for a in range(1, poly.shape[0] - 1):
+            v0, v1, v2 = poly[0], poly[a], poly[a + 1]
+            area2 = (v1[0] - v0[0]) * (v2[1] - v0[1]) - (v1[1] - v0[1]) * (v2[0] - v0[0])
+            if area2 <= 0.0:
+                continue  # a degenerate fan triangle (a vertex on the line)
+            xs.append(v0 + rule_xi[:, :1] * (v1 - v0) + rule_xi[:, 1:] * (v2 - v0))
+            ws.append(rule_w * area2)
+            sides.append(np.full(rule_w.size, side))
+    x = np.vstack(xs)
+    t = np.array([normal[1], -normal[0]])
+    ends, edges = [], []
+    k = xe.shape[0]
+    d = (xe - point) @ normal
+    for a in range(k):
+        b = (a + 1) % k
+        if (d[a] > 0.0) != (d[b] > 0.0):
+            ends.append(xe[a] + d[a] / (d[a] - d[b]) * (xe[b] - xe[a]))
+            edges.append(a)
+    if len(ends) != 2:
+        raise ValueError(f"the line does not cut the cell into two sides (it crosses {len(ends)} edges)")
+    ends_x = np.array(ends)
+    order = np.argsort(ends_x @ t)
+    ends_x, edge_of = ends_x[order], np.array(edges)[order]
+    length = float(np.linalg.norm(ends_x[1] - ends_x[0]))
+    crack_x = np.array([ends_x[0], 0.5 * (ends_x[0] + ends_x[1]), ends_x[1]])
+    return CutCell(inverse_map(ref, xe, x), x, np.concatenate(ws), np.concatenate(sides),
+                   inverse_map(ref, xe, crack_x), crack_x, np.array([1.0, 4.0, 1.0]) * length / 6.0, edge_of)
+
+
+def physical_gradients(ref: ReferenceElement, xe: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """dN_a/dx (m, n_nodes, 2) [1/m] at reference points xi (m, 2) of the cell with nodes xe."""
+    dn = ref.shape_gradients(xi)  # (m, a, i)
+    jac = np.einsum("pai,aj->pij", dn, xe)  # dx_j/dxi_i, (m, i, j)
+    return np.linalg.solve(jac[:, None, :, :], dn[..., None])[..., 0]

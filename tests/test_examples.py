@@ -43,7 +43,7 @@ def small(path: Path) -> dict:
     mesh = data.get("mesh", {})
     if mesh.get("file"):
         mesh["file"] = str((path.parent / mesh["file"]).resolve())
-    if mesh.get("kind") == "block" and mesh.get("element") != "hex8":  # (the 3D prism is small already)
+    if mesh.get("kind") == "block" and mesh.get("element") not in ("hex8", "tet4"):  # (the 3D prisms are small)
         mesh["nx"], mesh["ny"] = max(2, mesh.get("nx", 1) // 4), max(2, mesh.get("ny", 1) // 4)
     if mesh.get("kind") == "grains":
         mesh.update(n_grains=min(mesh.get("n_grains", 60), 8), element_size=mesh.get("width", 0.04) / 12)

@@ -61,6 +61,11 @@ def test_ep_on_every_edge_is_softer_by_its_penalties(tmp_path):
     ({"materials": [{"region": "rock", "E": 1e7, "nu": 0.2}]}, "give either [bulk] (one material everywhere) or [[materials]]"),
     ({"mesh": {"kind": "gmsh"}}, "kind = 'gmsh' needs file"),
     ({"mesh": {"kind": "block", "crack_angle": 0.3}}, "crack_angle do not apply to kind = 'block'"),
+    ({"mesh": {"kind": "specimen", "element": "tet4"}}, "element = 'tet4' is for kind = 'block'"),
+    ({"mesh": {"kind": "block", "nz": 2}}, "nz only apply to element = 'hex8' or 'tet4'"),
+    ({"mesh": {"kind": "block", "element": "tet4", "nx": 2, "ny": 2},
+      "cohesive": dict(table1.CSE_LAW, form="ep", where="all", kn=1e10, kt=1e10)},
+     "cohesive surfaces of a generated 3D mesh are not made: not with element = 'tet4'"),
 ])
 def test_bad_real_mesh_cases_name_the_key(tmp_path, edit, expected):
     from rockfrac.case.build import build

@@ -114,8 +114,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
 def refuse_nodal(case: Case, mesh: Mesh, path: str, ranks: bool) -> None:
     """What [embedded] kinematics = 'nodal' does not do yet, refused by name before any step."""
     why = None
-    if mesh.dim != 2:
-        why = f"it is 2D (quad4, tri3 cells); this mesh is {mesh.cell_type}"
+    if mesh.dim == 3 and case.mesh.kind is MeshKind.specimen:
+        why = "the plane-strain hexahedra of the paper's specimen are not cut (a 2D mesh or a general 3D body)"
     elif ranks:
         why = "it runs on one process (not on several MPI ranks yet)"
     elif case.initial is not None:
@@ -133,11 +133,12 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
-    if emb is not None and general and mesh.cell_type != "hex8":
+    if emb is not None and general and mesh.cell_type != "hex8" and emb.kinematics != "nodal":
         raise CaseError(f"{path}: [embedded]: embedded cracks in a general 3D body need hex8 cells; these are "
                         f"{mesh.cell_type} (in a tetrahedron whose grad f_S is far from the plane's normal, "
                         "sliding raises the yield function: a cut plane does not converge yet): mesh "
-                        "the drucker_prager regions with hexahedra, or remove [embedded]")
+                        "the drucker_prager regions with hexahedra, use kinematics = 'nodal', or remove "
+                        "[embedded]")
     if emb is not None and emb.kinematics == "nodal":
         refuse_nodal(case, mesh, path, owned is not None)
     ede_regions = None
@@ -182,7 +183,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
             share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
     nodal = [g for g in groups if isinstance(g, NodalEmbeddedDruckerPrager)]
     if nodal:  # one enrichment for every nodal group (a crack crosses regions), its unknowns owned by the first
-        registry = EnrichmentRegistry(nodal, mesh.cells)
+        registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim)
         for k, g in enumerate(nodal):
             g.attach(registry, first=k == 0)
     if emb is not None and emb.cracks:

@@ -12,6 +12,7 @@ from rockfrac.case.mesh_section import ElementType, MeshKind
 from rockfrac.case.schema import Case
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh, cracked_specimen, hex_specimen
+from rockfrac.mesh.specimen import split_into_tets
 from rockfrac.values import given
 
 
@@ -52,10 +53,12 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
             mesh = grain_specimen(m.width, m.height, n_grains=given(m.n_grains),
                                   radius=(given(m.radius_min), given(m.radius_max)), seed=given(m.seed),
                                   element_size=m.element_size, element=plane_element(m.element.value))
-        elif m.kind is MeshKind.block and m.element is ElementType.hex8:
+        elif m.kind is MeshKind.block and m.element.solid:
             box = None if m.inclusion is None else (m.inclusion[0], m.inclusion[1], m.inclusion[2], m.inclusion[3])
             mesh = hex_specimen(m.width, m.height, given(m.thickness), given(m.nx), given(m.ny), given(m.nz),
                                 inclusion=box)
+            if m.element is ElementType.tet4:
+                mesh = split_into_tets(mesh)
         elif m.kind is MeshKind.block:
             from rockfrac.mesh.grains import block_with_inclusion
 

@@ -63,6 +63,15 @@ def require(names, available, what: str, key: str, path: str) -> None:
                         f"its {what}s: {', '.join(sorted(available)) or '(none)'}")
 
 
+def side_normals(nodes: np.ndarray, sides: np.ndarray) -> np.ndarray:
+    """Outward unit normals (k, dim) of boundary edges (k, 2) or faces (k, 3|4) (fem.loads' orientations)."""
+    if sides.shape[1] == 2:
+        return edge_normals(nodes, sides)[0]
+    x = nodes[sides]
+    n = np.cross(x[:, 1] - x[:, 0], x[:, -1 if sides.shape[1] == 4 else 2] - x[:, 0])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
 def expand_loading(case: Case, mesh: Mesh, path: str) -> list[tuple[StageSection, str]]:
     """[loading] as stages: confinement (supports held, pressure on the sides), then one axial stage
     per target (the top shortened); each with the source a failure names."""
@@ -431,17 +440,17 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
                 raise CaseError(f"{path}: {key} in_situ.{group}: not on the outer boundary (a crack face?)")
             in_situ_factor[row] = factor
         f_end = np.zeros(dim * mesh.n_nodes)
-        surface_edges, surface_tractions = [], []  # 2D: each loaded edge and its traction
+        surface_edges, surface_tractions = [], []  # each loaded edge (face) and its traction
         for group, p in pressure.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
-            if dim == 2 and sides.size:
+            if sides.size:
                 surface_edges.append(sides)
-                surface_tractions.append(-p * edge_normals(mesh.nodes, sides)[0])
+                surface_tractions.append(-p * side_normals(mesh.nodes, sides))
         for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
-            if dim == 2 and sides.size:
+            if sides.size:
                 surface_edges.append(sides)
                 surface_tractions.append(np.broadcast_to(np.asarray(vec, dtype=float), (sides.shape[0], dim)))
         f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)

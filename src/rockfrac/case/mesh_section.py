@@ -25,6 +25,12 @@ class ElementType(str, Enum):
     tri3 = "tri3"
     quad4 = "quad4"
     hex8 = "hex8"
+    tet4 = "tet4"
+
+    @property
+    def solid(self) -> bool:
+        """A 3D cell (a block of thickness T, nz cells through it)."""
+        return self in (ElementType.hex8, ElementType.tet4)
 
 
 MESH_KEYS = {  # keys of [mesh] beyond kind, element, width, height, per kind
@@ -46,22 +52,23 @@ class MeshSection(_Section):
     regions and boundaries (in 3D, physical surfaces the faces loads act on).
     grains: n_grains circular stiff grains in a matrix (regions "grains", "matrix"), made by Gmsh.
     block: a W x H nx x ny grid, with an optional weak inclusion box (regions "weak", "bulk"); element =
-    "hex8": nx x ny x nz hexahedra of thickness T (z), a general 3D body (the inclusion through the thickness).
+    "hex8": nx x ny x nz hexahedra of thickness T (z), a general 3D body (the inclusion through the thickness);
+    "tet4": the same grid, each hexahedron split into six tetrahedra around its diagonal.
     Every kind provides the boundary groups bottom, top, left, right and bottom_left.
     """
 
     kind: MeshKind = Field(MeshKind.specimen, strict=False, description="'specimen', 'gmsh', 'grains' or 'block'")
-    element: ElementType = Field(ElementType.quad4, strict=False, description="'tri3', 'quad4' (2D) or 'hex8' (3D: plane strain in the specimen, general in a block)")
+    element: ElementType = Field(ElementType.quad4, strict=False, description="'tri3', 'quad4' (2D), 'hex8' (3D: plane strain in the specimen, general in a block) or 'tet4' (a block)")
     width: Length = Field(0.04, description="specimen width W [m]")
     height: Length = Field(0.08, description="specimen height H [m]")
-    thickness: Length | None = Field(None, description="hex8 only: thickness T [m] (default 0.08)")
+    thickness: Length | None = Field(None, description="hex8, tet4 only: thickness T [m] (default 0.08)")
     crack: bool | None = Field(None, description="specimen, quad4: cut the specimen with a crack (default true)")
     crack_angle: float | None = Field(
         None, gt=-math.pi / 2, lt=math.pi / 2, description="crack angle from horizontal [rad] (default 60 deg)"
     )
     nx: Count | None = Field(None, le=MAX_CELLS_ALONG, description="elements across (in each block when cracked) (default 1)")
     ny: Count | None = Field(None, le=MAX_CELLS_ALONG, description="element layers (in each block when cracked) (default 1)")
-    nz: Count | None = Field(None, le=MAX_CELLS_ALONG, description="hex8 only: elements through the thickness (default 1)")
+    nz: Count | None = Field(None, le=MAX_CELLS_ALONG, description="hex8, tet4 only: elements through the thickness (default 1)")
     file: str | None = Field(None, description="gmsh: the .msh file (relative to the case file)")
     n_grains: Count | None = Field(None, le=100_000, description="grains: number of grains (default 60)")
     radius_min: Length | None = Field(None, description="grains: smallest grain radius [m] (default W/25)")
@@ -81,7 +88,9 @@ class MeshSection(_Section):
             raise ValueError("kind = 'gmsh' needs file (the .msh file)")
         if self.element is ElementType.hex8 and self.kind not in (MeshKind.specimen, MeshKind.block):
             raise ValueError("element = 'hex8' is for kind = 'specimen' or 'block' (a gmsh file brings its own cells)")
-        if self.element is ElementType.hex8:
+        if self.element is ElementType.tet4 and self.kind is not MeshKind.block:
+            raise ValueError("element = 'tet4' is for kind = 'block' (a gmsh file brings its own cells)")
+        if self.element.solid:
             if self.crack:
                 raise ValueError("element = 'hex8' cannot carry a cohesive crack (CSEs are 2D): use "
                                  "element = 'quad4' or crack = false")
@@ -90,7 +99,7 @@ class MeshSection(_Section):
         else:
             given = [k for k in ("thickness", "nz") if getattr(self, k) is not None]
             if given:
-                raise ValueError(f"{', '.join(given)} only apply to element = 'hex8'")
+                raise ValueError(f"{', '.join(given)} only apply to element = 'hex8' or 'tet4'")
             if self.crack is False and self.crack_angle is not None:
                 raise ValueError("crack_angle is given but crack = false")
         if self.kind is MeshKind.specimen and self.element is ElementType.tri3:
@@ -127,7 +136,7 @@ class MeshSection(_Section):
                                            "radius_max": self.radius_max or w / 12,
                                            "seed": self.seed if self.seed is not None else 0,
                                            "element_size": self.element_size or w / 40})
-        if k is MeshKind.block and self.element is ElementType.hex8:
+        if k is MeshKind.block and self.element.solid:
             return self.model_copy(update={"nx": self.nx or 1, "ny": self.ny or 1, "nz": self.nz or 1,
                                            "thickness": self.thickness or 0.08})
         if k is MeshKind.block:

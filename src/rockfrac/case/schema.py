@@ -104,8 +104,9 @@ class Case(_Section):
         if on_crack and not crack:
             raise ValueError("[cohesive] where = 'crack' needs the specimen's crack (kind = 'specimen', crack = true); "
                              "elsewhere say where the surfaces go (between, within, curves, all)")
-        if sets and self.mesh.element is ElementType.hex8:
-            raise ValueError("cohesive surfaces are 2D: not with element = 'hex8'")
+        if sets and self.mesh.element.solid and self.mesh.kind is not MeshKind.gmsh:
+            raise ValueError(f"cohesive surfaces of a generated 3D mesh are not made: not with element = "
+                             f"'{self.mesh.element.value}' (3D cohesive surfaces: a gmsh mesh of tet4 cells)")
         dp = [m for m in self.material_list if m.model is BulkModel.drucker_prager]
         if self.embedded is not None and not dp:
             raise ValueError("[embedded] needs a drucker_prager material (bifurcation of eq. 7-8)")

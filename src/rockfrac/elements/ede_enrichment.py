@@ -22,15 +22,28 @@ from __future__ import annotations
 import numpy as np
 
 
-def edge_key(a: int, b: int) -> tuple[int, int]:
-    return (a, b) if a < b else (b, a)
+def side_key(nodes) -> tuple[int, ...]:
+    """A cell side (an edge in 2D, a face in 3D) as its sorted mesh nodes."""
+    return tuple(sorted(int(v) for v in nodes))
+
+
+def cell_sides(cells: np.ndarray, dim: int) -> list[tuple[int, ...]]:
+    """The sides of a cell type as local node lists: a 2D cell's edges (k to k + 1), a 3D cell's faces."""
+    from rockfrac.fem.cut_cell import FACES
+
+    k = cells.shape[1]
+    if dim == 2:
+        return [(a, (a + 1) % k) for a in range(k)]
+    return FACES["tet4" if k == 4 else "hex8"]
 
 
 class EnrichmentRegistry:
     """The enriched unknowns of a model's nodal-crack groups (module doc).
 
     groups: the groups (each with ``cells`` (n_el, k) mesh nodes and ``cell_ids`` their mesh cells);
-    mesh_cells: every cell of the 2D mesh (n, k) (the neighbours across crack-tip edges).
+    mesh_cells: every cell of the mesh (n, k) (the neighbours across crack-tip sides). A group tells
+    where its cut cell e's crack crosses the cell's sides: ``crossed_sides(e)``, a list of (side's
+    mesh nodes, the crack's trace on it: its end point in 2D, its segment on the face in 3D).
     """
 
     def __init__(self, groups: list, mesh_cells: np.ndarray, dim: int = 2):
@@ -42,11 +55,11 @@ class EnrichmentRegistry:
         self.crack_of = np.full(self.nodes.size, -1)
         self.version = 0
         self.dirty = False
-        self.edge_cells: dict[tuple[int, int], list[int]] = {}
-        k = mesh_cells.shape[1]
+        self.side_cells: dict[tuple[int, ...], list[int]] = {}
+        local = cell_sides(mesh_cells, dim)
         for c, conn in enumerate(mesh_cells.tolist()):
-            for a in range(k):
-                self.edge_cells.setdefault(edge_key(conn[a], conn[(a + 1) % k]), []).append(c)
+            for side in local:
+                self.side_cells.setdefault(side_key(conn[a] for a in side), []).append(c)
         self.cut: dict[int, tuple[int, int, int]] = {}  # mesh cell -> (group, local cell, crack id)
         self.cut_order: list[int] = []
         self.parent: list[int] = []  # crack ids joined into cracks (union-find)
@@ -75,22 +88,21 @@ class EnrichmentRegistry:
         self.version += 1  # the cut cells' dofs change with it
 
     # -- the cuts ------------------------------------------------------------------------------
-    def register_cut(self, group, local: int, end_edges: list[tuple[int, int]], end_points: np.ndarray) -> int:
-        """A cell of ``group`` has been cut; its crack's ends lie on the edges ``end_edges`` (pairs of
-        mesh nodes) at ``end_points`` (2, 2) [m]. Returns its crack: a new one, joined to that of every
-        cut neighbour whose crack ends at the same point of a shared edge (the crack it continues; the
+    def register_cut(self, group, local: int) -> int:
+        """A cell of ``group`` has been cut. Returns its crack: a new one, joined to that of every cut
+        neighbour whose crack crosses a shared side along the same trace (the crack it continues; the
         cells of a crack given in advance are cut in any order, so two of its pieces meet there)."""
         gcell = int(group.cell_ids[local])
         crack = self._new_crack()
-        size = float(np.sqrt(group.wdet[local].sum()))
-        for (a, b), x in zip(end_edges, end_points):
-            for other in self.edge_cells.get(edge_key(a, b), []):
+        size = float(group.wdet[local].sum()) ** (1.0 / self.dim)
+        for nodes, trace in group.crossed_sides(local):
+            key = side_key(nodes)
+            for other in self.side_cells.get(key, []):
                 if other == gcell or other not in self.cut:
                     continue
                 gi, e, other_crack = self.cut[other]
-                g = self.groups[gi]
-                for pair, y in zip(g.crack_end_edges(e), g.crack_end_points(e)):
-                    if edge_key(*pair) == edge_key(a, b) and np.linalg.norm(y - x) <= 1e-9 * size:
+                for o_nodes, o_trace in self.groups[gi].crossed_sides(e):
+                    if side_key(o_nodes) == key and _same_trace(trace, o_trace, 1e-9 * size):
                         self._join(crack, other_crack)
         self.cut[gcell] = (self.groups.index(group), local, crack)
         self.cut_order.append(gcell)
@@ -149,10 +161,10 @@ class EnrichmentRegistry:
             gi, e, crack = self.cut[gcell]
             crack = self.find(crack)
             g = self.groups[gi]
-            for a, b in g.crack_end_edges(e):
-                across = [c for c in self.edge_cells.get(edge_key(a, b), []) if c != gcell]
+            for nodes, _ in g.crossed_sides(e):
+                across = [c for c in self.side_cells.get(side_key(nodes), []) if c != gcell]
                 if across and across[0] not in self.cut:
-                    tips.setdefault(crack, set()).update((a, b))
+                    tips.setdefault(crack, set()).update(int(v) for v in nodes)
         for gcell in self.cut_order:
             gi, e, crack = self.cut[gcell]
             crack = self.find(crack)
@@ -191,32 +203,35 @@ class EnrichmentRegistry:
         return self.offset + self.dim * i[inside] + comp[inside]
 
     # -- loads on a boundary the crack crosses --------------------------------------------------
-    def surface_forces(self, edges: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray:
-        """The q part (n_dofs,) of the nodal forces of uniform tractions (m, 2) [Pa] on boundary edges
-        (m, 2) (mesh nodes): on an edge a crack crosses at s (from node a, 0..1), node a's q takes
-        (H_other - H_a) t L times the integral of N_a over the other side; the rest is zero."""
+    def surface_forces(self, sides: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray:
+        """The q part (n_dofs,) of the nodal forces of uniform tractions (m, dim) [Pa] on boundary sides
+        (m, 2) edges in 2D, (m, 3|4) faces in 3D (mesh nodes): on a side a crack crosses, node a's q
+        takes (H_other - H_a) t times the integral of N_a over the part of the side across the crack
+        from a (the group's :meth:`split_side`); the rest is zero."""
         out = np.zeros(n_dofs)
-        if not self.cut or edges.size == 0:
+        if not self.cut or sides.size == 0:
             return out
-        load = {edge_key(int(a), int(b)): tractions[k] for k, (a, b) in enumerate(edges.tolist())}
+        load = {side_key(nodes): tractions[k] for k, nodes in enumerate(sides.tolist())}
         for gcell in self.cut_order:
             gi, e, crack = self.cut[gcell]
             crack = self.find(crack)
             g = self.groups[gi]
-            for (a, b), x in zip(g.crack_end_edges(e), g.crack_end_points(e)):
-                key = edge_key(a, b)
-                if key not in load or len(self.edge_cells.get(key, [])) != 1:
-                    continue  # not a loaded boundary edge
-                xa, xb = g.nodes[a, :2], g.nodes[b, :2]
-                length = float(np.linalg.norm(xb - xa))
-                s = float(np.dot(x - xa, xb - xa)) / length ** 2
-                side = g.node_sides(e)
-                h = {a: side[a], b: side[b]}
-                for node, part in ((a, 0.5 * (1.0 - s) ** 2), (b, 0.5 * s ** 2)):
+            for nodes, _ in g.crossed_sides(e):
+                key = side_key(nodes)
+                if key not in load or len(self.side_cells.get(key, [])) != 1:
+                    continue  # not a loaded boundary side
+                for node, share in g.split_side(e, nodes).items():
                     i = int(self.index(np.array(node)))
                     if not self.enriched[i] or self.crack_of[i] != crack:
                         continue
-                    other = 1.0 - h[node]  # the side across the crack from the node
                     dofs = self.offset + self.dim * i + np.arange(self.dim)
-                    out[dofs] += (other - h[node]) * part * length * load[key]
+                    out[dofs] += share * load[key]
         return out
+
+
+def _same_trace(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
+    """Two traces of a crack on a side (points (p, dim)) are the same, in any order."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    if a.shape != b.shape:
+        return False
+    return bool(all(np.min(np.linalg.norm(b - x, axis=1)) <= tol for x in a))

@@ -22,7 +22,7 @@ import numpy as np
 from rockfrac.compiled import inner
 from rockfrac.elements.plastic_solid import dp_element_into, element_scratch, n_chunks
 from rockfrac.laws import drucker_prager as dp
-from rockfrac.laws.embedded_penalty import crack_return
+from rockfrac.laws.embedded_penalty import crack_return, crack_return_3d
 from rockfrac.threads import parallel_kernel
 
 ST_OK = 0
@@ -175,3 +175,130 @@ def cut_blocks(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, 
         status[c] = _cut_cell(ue[c], enr[c], cw[c], cside[c], cgrads[c], chnode[c], cstate[c], cshape[c], cwk[c],
                               cframe[c], ccp[c], dp_p, dp_k, dp_mu, dp_ce, law, kt, kn, cstate_new[c], csigma[c],
                               ccp_new[c], fe[c], ke[c])
+
+
+# -- general 3D cells (tet4, hex8) --------------------------------------------------------------------
+
+@inner
+def _side_point_3d(g, factor, n_nodes, bt):
+    """bt (6, 6 n_nodes) = [B, B_q] at a side point of a 3D cell (rows xx, yy, zz, xy, yz, xz,
+    engineering shear): B of the gradients g (n_nodes, 3) on the u's, factor[a] B_a on the q's."""
+    bt[:, :] = 0.0
+    for a in range(n_nodes):
+        gx, gy, gz = g[a, 0], g[a, 1], g[a, 2]
+        for part in range(2):
+            f = 1.0 if part == 0 else factor[a]
+            c = 3 * a + part * 3 * n_nodes
+            bt[0, c] = f * gx
+            bt[1, c + 1] = f * gy
+            bt[2, c + 2] = f * gz
+            bt[3, c], bt[3, c + 1] = f * gy, f * gx
+            bt[4, c + 1], bt[4, c + 2] = f * gz, f * gy
+            bt[5, c], bt[5, c + 2] = f * gz, f * gx
+
+
+@inner
+def _cut_cell_3d(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, k, mu, ce, law, kt,
+                 kn, cstate_new, csigma, ccp_new, fe, ke):
+    """One cut 3D cell: its sides' Drucker-Prager points and its crack points (the 3D law,
+    rockfrac.laws.embedded_penalty.crack_return_3d, in the frame (t1, t2, n) of cframe's rows)."""
+    n_nodes = enr.shape[0]
+    nd = 6 * n_nodes
+    bt = np.empty((6, nd))
+    eps6 = np.zeros(6)
+    c6 = np.empty((6, 6))
+    work = np.empty((5, 6))
+    factor = np.empty(n_nodes)
+    cb = np.empty((6, nd))
+    fe[:] = 0.0
+    ke[:, :] = 0.0
+    status = ST_OK
+    for p in range(cw.shape[0]):
+        w = cw[p]
+        if w == 0.0:
+            continue
+        for a in range(n_nodes):
+            factor[a] = enr[a] * (cside[p] - chnode[a])
+        _side_point_3d(cgrads[p], factor, n_nodes, bt)
+        for i in range(6):
+            acc = 0.0
+            for j in range(nd):
+                acc += bt[i, j] * ue[j]
+            eps6[i] = acc
+        st = dp.return_map_into(eps6, cstate[p], dp_p, k, mu, ce, work, csigma[p], c6, cstate_new[p])
+        if st < 0:
+            status = ST_DP_FAIL
+            continue
+        for i in range(6):
+            for j in range(nd):
+                acc = 0.0
+                for m in range(6):
+                    acc += c6[i, m] * bt[m, j]
+                cb[i, j] = acc
+        for a in range(nd):
+            fa = 0.0
+            for i in range(6):
+                fa += bt[i, a] * csigma[p, i]
+            fe[a] += w * fa
+            for b in range(nd):
+                acc = 0.0
+                for i in range(6):
+                    acc += bt[i, a] * cb[i, b]
+                ke[a, b] += w * acc
+    jl = np.empty(3)
+    tr = np.empty(3)
+    dloc = np.empty((3, 3))
+    dg = np.empty((3, 3))
+    tg = np.empty(3)
+    q0 = 3 * n_nodes
+    for kk in range(cwk.shape[0]):
+        wk = cwk[kk]
+        if wk == 0.0:
+            continue
+        jg = np.zeros(3)
+        for a in range(n_nodes):
+            sa = enr[a] * cshape[kk, a]
+            for i in range(3):
+                jg[i] += sa * ue[q0 + 3 * a + i]
+        for r in range(3):
+            jl[r] = cframe[r, 0] * jg[0] + cframe[r, 1] * jg[1] + cframe[r, 2] * jg[2]
+        st = crack_return_3d(jl, ccp[kk], law, kt, kn, ccp_new[kk], tr, dloc)
+        if st < 0:
+            status = ST_CRACK_FAIL
+        for i in range(3):
+            tg[i] = cframe[0, i] * tr[0] + cframe[1, i] * tr[1] + cframe[2, i] * tr[2]
+        for i in range(3):  # D_g = R^T D R, R's rows the frame
+            for j in range(3):
+                acc = 0.0
+                for r in range(3):
+                    for c in range(3):
+                        acc += cframe[r, i] * dloc[r, c] * cframe[c, j]
+                dg[i, j] = acc
+        for a in range(n_nodes):
+            sa = wk * enr[a] * cshape[kk, a]
+            if sa == 0.0:
+                continue
+            for i in range(3):
+                fe[q0 + 3 * a + i] += sa * tg[i]
+            for b in range(n_nodes):
+                sab = sa * enr[b] * cshape[kk, b]
+                if sab == 0.0:
+                    continue
+                for i in range(3):
+                    for j in range(3):
+                        ke[q0 + 3 * a + i, q0 + 3 * b + j] += sab * dg[i, j]
+    return status
+
+
+@parallel_kernel(cost=2.0e-4)  # s per item, one thread (an estimate: up to 160 side points a hexahedron)
+def cut_blocks_3d(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, law, kt, kn,
+                  cstate_new, csigma, ccp_new, fe, ke, status):
+    """:func:`cut_blocks` of general 3D cells: fe (n_cut, 6 n_nodes), ke on their (u, q); cframe
+    (n_cut, 3, 3) rows (t1, t2, n), ccp (n_cut, k, N_C3); crack points with weight 0 are padding."""
+    n = ue.shape[0]
+    dp_k, dp_mu = dp.moduli(dp_p)
+    dp_ce = dp.elastic_matrix(dp_p)
+    for c in nb.prange(n):
+        status[c] = _cut_cell_3d(ue[c], enr[c], cw[c], cside[c], cgrads[c], chnode[c], cstate[c], cshape[c], cwk[c],
+                                 cframe[c], ccp[c], dp_p, dp_k, dp_mu, dp_ce, law, kt, kn, cstate_new[c], csigma[c],
+                                 ccp_new[c], fe[c], ke[c])

@@ -29,7 +29,7 @@ class CutCells(ElementGroup):
     def __init__(self, owner: NodalEmbeddedDruckerPrager):
         self.owner = owner
         self.name = f"{owner.name} (cut cells)"
-        self._dofs = np.zeros((0, 4 * owner.cells.shape[1]), dtype=np.int64)
+        self._dofs = np.zeros((0, 2 * owner.dim * owner.cells.shape[1]), dtype=np.int64)
         self._key: tuple[int, int] = (-1, -1)
 
     @property
@@ -62,9 +62,10 @@ class CutCells(ElementGroup):
         status = np.zeros(n, dtype=np.int64)
         if n:
             enr = g.enrichment()
-            NK.cut_blocks(np.ascontiguousarray(u[self.dofs]), np.ascontiguousarray(enr[g.cc_cell]), g.cc_w, g.cc_side,
-                          g.cc_grads, g.cc_hnode, g.cc_state, g.cc_shape, g.cc_wk, g.cc_frame, g.cc_cp, g.p,
-                          g.surface_params, g.kt, g.kn, g.cc_trial, g.cc_trial_sigma, g.cc_cp_trial, fe, ke, status)
+            blocks = NK.cut_blocks if g.dim == 2 else NK.cut_blocks_3d
+            blocks(np.ascontiguousarray(u[self.dofs]), np.ascontiguousarray(enr[g.cc_cell]), g.cc_w, g.cc_side,
+                   g.cc_grads, g.cc_hnode, g.cc_state, g.cc_shape, g.cc_wk, g.cc_frame, g.cc_cp, g.p,
+                   g.surface_params, g.kt, g.kn, g.cc_trial, g.cc_trial_sigma, g.cc_cp_trial, fe, ke, status)
         bad = np.flatnonzero(status < 0)
         if not bad.size:
             return Evaluation(fe, ke)

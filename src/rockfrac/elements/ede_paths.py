@@ -12,6 +12,7 @@ from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.ede_planes import EDGES, plane_polygons
 from rockfrac.laws.bifurcation import localization_at
 from rockfrac.laws.bifurcation_plane import MAX_MINIMA, minima_plane_strain
+from rockfrac.mesh.topology import HEX_FACES, TET_FACES
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ def _band(n: np.ndarray) -> float:
 
 
 # the sides of a 3D cell by its node count (VTK order): a hexahedron's six faces
-SIDES = {8: np.array([[0, 1, 2, 3], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])}
+SIDES = {8: HEX_FACES, 4: TET_FACES}  # a 3D cell's faces, by its number of nodes
 CELL_OF_NODES = {8: "hex8", 4: "tet4"}
 
 
@@ -96,6 +97,7 @@ class CrackPaths:
         self.anchor = np.full((n_cells, 3), np.nan)  # 3D: a point of their planes [m]
         self.normal = np.zeros((n_cells, 3))
         self.centres = [g.x.mean(axis=1) for g in groups]  # own cell centroids per group [m]
+        self._tips: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}  # tip(), until the table changes
         self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes)
         gids = np.concatenate([i for i, _ in full] + [np.zeros(0, dtype=np.int64)])
         if gids.size == 0:
@@ -126,6 +128,7 @@ class CrackPaths:
         """Enter a cut cell's surface in the table: its segment (2, 2) in 2D, a point of its plane
         (3,) in 3D [m]."""
         self.cut[gcell] = True
+        self._tips.clear()
         if np.shape(surface) == (3,):
             self.anchor[gcell] = surface
         else:
@@ -153,6 +156,7 @@ class CrackPaths:
             loc = np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0)
             mine.append((g.cell_ids[loc], self._surface(g, loc), g.e_state[loc, K.E_N:K.E_N + 3]))
         self.cut[:] = False
+        self._tips.clear()
         self.segment[:] = np.nan
         self.anchor[:] = np.nan
         self.normal[:] = 0.0
@@ -180,7 +184,13 @@ class CrackPaths:
     def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, neighbour normal) where a cut neighbour's surface ends on the side shared with
         gcell: in 2D the end of its segment on the shared edge; in 3D the middle of the edge its
-        polygon leaves on the shared face (the crack front there)."""
+        polygon leaves on the shared face (the crack front there). Memoized until the table changes."""
+        if gcell not in self._tips:
+            self._tips[gcell] = self._tip(gcell)
+        found = self._tips[gcell]
+        return None if found is None else (found[0].copy(), found[1].copy())
+
+    def _tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         if self.nodes.shape[1] == 3:
             return self._tip_3d(gcell)
         for c, (a, b) in self.nbr.get(gcell, []):

@@ -111,3 +111,104 @@ def physical_gradients(ref: ReferenceElement, xe: np.ndarray, xi: np.ndarray) ->
     dn = ref.shape_gradients(xi)  # (m, a, i)
     jac = np.einsum("pai,aj->pij", dn, xe)  # dx_j/dxi_i, (m, i, j)
     return np.linalg.solve(jac[:, None, :, :], dn[..., None])[..., 0]
+
+
+# -- a 3D cell (tet4, hex8) cut by a plane ----------------------------------------------------------
+
+#: the faces of the reference cells (node lists, Gmsh/VTK order), each once
+FACES: dict[str, list[tuple[int, ...]]] = {
+    "tet4": [(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)],
+    "hex8": [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)],
+}
+_KEAST = 0.1381966011250105  # the four-point rule of a tetrahedron (degree 2), weights 1/4 of its volume
+TET_RULE = np.array([[1 - 3 * _KEAST, _KEAST, _KEAST, _KEAST], [_KEAST, 1 - 3 * _KEAST, _KEAST, _KEAST],
+                     [_KEAST, _KEAST, 1 - 3 * _KEAST, _KEAST], [_KEAST, _KEAST, _KEAST, 1 - 3 * _KEAST]])
+_A, _B = 0.445948490915965, 0.091576213509771  # the six-point rule of a triangle (degree 4)
+TRIANGLE_RULE_6 = (np.array([[_A, _A, 1 - 2 * _A], [_A, 1 - 2 * _A, _A], [1 - 2 * _A, _A, _A],
+                             [_B, _B, 1 - 2 * _B], [_B, 1 - 2 * _B, _B], [1 - 2 * _B, _B, _B]]),
+                   np.array([0.223381589678011] * 3 + [0.109951743655322] * 3))
+TRIANGLE_RULE_3 = (np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]), np.full(3, 1 / 3))
+
+
+def _side_polyhedron(xe: np.ndarray, edges: np.ndarray, d: np.ndarray, sign: float) -> np.ndarray:
+    """The corners (m, 3) of the part of a convex cell where sign d >= 0: its nodes there and where its
+    edges cross the plane (d the nodes' signed distances)."""
+    keep = [xe[a] for a in range(xe.shape[0]) if sign * d[a] >= 0.0]
+    for a, b in edges:
+        if min(d[a], d[b]) < 0.0 < max(d[a], d[b]):
+            keep.append(xe[a] + d[a] / (d[a] - d[b]) * (xe[b] - xe[a]))
+    return np.array(keep)
+
+
+def _tetrahedra(corners: np.ndarray) -> np.ndarray:
+    """A convex polyhedron given by its corners (m, 3) as tetrahedra (t, 4, 3): its hull's triangles
+    fanned from its centroid."""
+    from scipy.spatial import ConvexHull
+
+    centre = corners.mean(axis=0)
+    hull = ConvexHull(corners)
+    tets = np.array([[centre, *corners[s]] for s in hull.simplices])
+    vol = np.einsum("ti,ti->t", np.cross(tets[:, 1] - tets[:, 0], tets[:, 2] - tets[:, 0]), tets[:, 3] - tets[:, 0])
+    return tets[np.abs(vol) > 1e-14 * np.abs(vol).max()]
+
+
+def cut_cell_3d(ref: ReferenceElement, xe: np.ndarray, point: np.ndarray, normal: np.ndarray) -> CutCell:
+    """The quadrature of a convex 3D cell with nodes xe (k, 3) [m] cut by the plane through ``point``
+    with unit ``normal``: each side's points (a tetrahedron's sides strain uniformly: one point each,
+    at its centroid with its volume; a hexahedron's: the side's hull fanned into tetrahedra, four
+    points each) and the crack's polygon fanned into triangles (three points each for a tetrahedron,
+    whose shape functions are linear on it; six, degree 4, for a hexahedron). ``crack_edges`` here
+    lists the faces of the cell (indices into FACES) the crack crosses."""
+    from rockfrac.elements.ede_planes import EDGES, plane_polygons
+
+    edges = EDGES[ref.name]
+    d = (xe - point) @ normal
+    xs, ws, sides = [], [], []
+    for side, sign in ((1, 1.0), (0, -1.0)):
+        tets = _tetrahedra(_side_polyhedron(xe, edges, d, sign))
+        vol = np.abs(np.einsum("ti,ti->t", np.cross(tets[:, 1] - tets[:, 0], tets[:, 2] - tets[:, 0]),
+                               tets[:, 3] - tets[:, 0])) / 6.0
+        if ref.simplex:
+            centres = np.einsum("t,tci->i", vol, tets) / (4.0 * vol.sum())
+            xs.append(centres[None, :])
+            ws.append(np.array([vol.sum()]))
+            sides.append(np.array([side]))
+        else:
+            xs.append(np.einsum("qc,tci->tqi", TET_RULE, tets).reshape(-1, 3))
+            ws.append(np.repeat(vol / 4.0, 4))
+            sides.append(np.full(4 * tets.shape[0], side))
+    x = np.vstack(xs)
+    poly = plane_polygons(xe[None], edges, np.asarray(point, float)[None], np.asarray(normal, float)[None])[0][0]
+    poly = poly[np.isfinite(poly).all(axis=1)]
+    rule, rule_w = TRIANGLE_RULE_3 if ref.simplex else TRIANGLE_RULE_6
+    centre = poly.mean(axis=0)
+    cx, cw = [], []
+    for a in range(poly.shape[0]):
+        tri = np.array([centre, poly[a], poly[(a + 1) % poly.shape[0]]])
+        area = 0.5 * np.linalg.norm(np.cross(tri[1] - tri[0], tri[2] - tri[0]))
+        cx.append(rule @ tri)
+        cw.append(rule_w * area)
+    crack_x = np.vstack(cx)
+    crossed = np.array([k for k, face in enumerate(FACES[ref.name])
+                        if d[list(face)].min() < 0.0 < d[list(face)].max()])
+    return CutCell(inverse_map(ref, xe, x), x, np.concatenate(ws), np.concatenate(sides),
+                   inverse_map(ref, xe, crack_x), crack_x, np.concatenate(cw), crossed)
+
+
+def clip_by(points: np.ndarray, d: np.ndarray, sign: float) -> np.ndarray:
+    """The part where sign d >= 0 of a segment (2, dim) or a polygon (m, dim) (its corners in order),
+    d the corners' signed distances to a line or plane."""
+    if points.shape[0] == 2:
+        keep = [points[a] for a in range(2) if sign * d[a] >= 0.0]
+        if min(d) < 0.0 < max(d):
+            keep.insert(1 if sign * d[0] >= 0.0 else 0, points[0] + d[0] / (d[0] - d[1]) * (points[1] - points[0]))
+        return np.array(keep)
+    out = []
+    k = points.shape[0]
+    for a in range(k):
+        b = (a + 1) % k
+        if sign * d[a] >= 0.0:
+            out.append(points[a])
+        if min(d[a], d[b]) < 0.0 < max(d[a], d[b]):
+            out.append(points[a] + d[a] / (d[a] - d[b]) * (points[b] - points[a]))
+    return np.array(out)

@@ -133,20 +133,15 @@ def _tangent(active, kt, kn, dt, dr, rt, d):
 
 
 @inner
-def crack_return(j_t, j_n, st_old, law, kt, kn, st_new, tr, d):
-    """One update of a crack point at the jump (j_t, j_n) [m] (module doc): st_new, the traction
-    tr (2,) [Pa] and the tangent d (2, 2) [Pa/m] in (t, n). Returns ST_OK or ST_NO_RETURN.
+def return_trial(tt_tr, tn_tr, s, gamma_n, c_p, old_mode, law, kt, kn, res, d):
+    """The return of a trial traction (tt_tr, tn_tr) [Pa] from a point at gamma_n with peak cohesion
+    c_p whose last update was old_mode (module doc): res = (T_t, T_n, gamma, psi, dz, dl, mode) and
+    the tangent d (2, 2) = dT/d[[u]] in (t, n) [Pa/m]. Returns ST_OK or ST_NO_RETURN.
 
     Two surfaces: the shear surface R1 = s T_t + tan(phi) min(T_n, 0) - c (slip dz along m) and the
     tension cut-off R2 = T_n - c (opening dl along n: the crack holds no more tension than its
     cohesion, none once that is gone); gamma = gamma_n + dl + cos(psi) dz. The active set is the
     shear surface, else the cut-off, else both (the corner), whichever return satisfies the other."""
-    for k in range(st_old.shape[0]):
-        st_new[k] = st_old[k]
-    c_p, gamma_n = st_old[CP_CP], st_old[CP_GAMMA]
-    tt_tr = st_old[CP_T0] + kt * (j_t - st_old[CP_JP])
-    tn_tr = st_old[CP_T0 + 1] + kn * (j_n - st_old[CP_JP + 1])
-    s = 1.0 if tt_tr >= 0.0 else -1.0
     out = np.empty(6)
     dt = np.empty((2, 2))
     dr = np.empty((2, 2))
@@ -154,24 +149,20 @@ def crack_return(j_t, j_n, st_old, law, kt, kn, st_new, tr, d):
     _crack_state(0.0, 0.0, s, tt_tr, tn_tr, kt, kn, gamma_n, c_p, law, out, dt, dr, rt)
     scale = max(c_p, abs(tt_tr), abs(tn_tr), 1.0)
     tol = 1e-12 * scale
-    st_new[CP_J], st_new[CP_J + 1] = j_t, j_n
-    st_new[CP_DZ] = 0.0
+    res[4], res[5] = 0.0, 0.0
     if out[3] <= tol and out[4] <= tol:
-        tr[0], tr[1] = tt_tr, tn_tr
+        res[0], res[1], res[2], res[3], res[6] = tt_tr, tn_tr, gamma_n, out[5], 0.0
         d[0, 0], d[0, 1], d[1, 0], d[1, 1] = kt, 0.0, 0.0, kn
-        st_new[CP_T], st_new[CP_T + 1] = tt_tr, tn_tr
-        st_new[CP_MODE] = 0.0
         # on the surface of the last update's plastic flow (a step's first iterate: the committed
         # jump): its tangent, not the elastic one (the point goes on flowing unless the step unloads
         # it; the traction is the same either way)
-        old = st_old[CP_MODE]
         on1, on2 = abs(out[3]) <= 1e-9 * scale, abs(out[4]) <= 1e-9 * scale
         active = -1
-        if old == 3.0 and on1 and on2:
+        if old_mode == 3.0 and on1 and on2:
             active = 2
-        elif (old == 1.0 or old == 3.0) and on1:
+        elif (old_mode == 1.0 or old_mode == 3.0) and on1:
             active = 0
-        elif (old == 2.0 or old == 3.0) and on2:
+        elif (old_mode == 2.0 or old_mode == 3.0) and on2:
             active = 1
         if active >= 0:
             _tangent(active, kt, kn, dt, dr, rt, d)
@@ -207,16 +198,36 @@ def crack_return(j_t, j_n, st_old, law, kt, kn, st_new, tr, d):
             ddl = -(-dr[1, 0] * r1 + dr[0, 0] * r2) / det
             dz, dl = max(dz + ddz, 0.0), max(dl + ddl, 0.0)
         _crack_state(dz, dl, s, tt_tr, tn_tr, kt, kn, gamma_n, c_p, law, out, dt, dr, rt)
-    t_t, t_n, gamma, psi = out[0], out[1], out[2], out[5]
-    tr[0], tr[1] = t_t, t_n
     _tangent(active, kt, kn, dt, dr, rt, d)
+    res[0], res[1], res[2], res[3], res[4], res[5] = out[0], out[1], out[2], out[5], dz, dl
+    res[6] = (1.0, 2.0, 3.0)[active] if active >= 0 else 1.0
+    return status
+
+
+@inner
+def crack_return(j_t, j_n, st_old, law, kt, kn, st_new, tr, d):
+    """One update of a crack point at the jump (j_t, j_n) [m] (module doc, :func:`return_trial`):
+    st_new, the traction tr (2,) [Pa] and the tangent d (2, 2) [Pa/m] in (t, n). Returns ST_OK or
+    ST_NO_RETURN."""
+    for k in range(st_old.shape[0]):
+        st_new[k] = st_old[k]
+    tt_tr = st_old[CP_T0] + kt * (j_t - st_old[CP_JP])
+    tn_tr = st_old[CP_T0 + 1] + kn * (j_n - st_old[CP_JP + 1])
+    s = 1.0 if tt_tr >= 0.0 else -1.0
+    res = np.empty(7)
+    status = return_trial(tt_tr, tn_tr, s, st_old[CP_GAMMA], st_old[CP_CP], st_old[CP_MODE], law, kt, kn, res, d)
+    t_t, t_n, gamma, psi, dz, dl, mode = res[0], res[1], res[2], res[3], res[4], res[5], res[6]
+    tr[0], tr[1] = t_t, t_n
+    st_new[CP_J], st_new[CP_J + 1] = j_t, j_n
+    st_new[CP_T], st_new[CP_T + 1] = t_t, t_n
+    st_new[CP_DZ] = dz
+    st_new[CP_MODE] = mode
+    if mode == 0.0:
+        return status
     st_new[CP_JP] = st_old[CP_JP] + dz * s * math.cos(psi)
     st_new[CP_JP + 1] = st_old[CP_JP + 1] + dz * math.sin(psi) + dl
     st_new[CP_GAMMA] = gamma
     st_new[CP_ZETA] = st_old[CP_ZETA] + dz
-    st_new[CP_T], st_new[CP_T + 1] = t_t, t_n
-    st_new[CP_MODE] = (1.0, 2.0, 3.0)[active] if active >= 0 else 1.0
-    st_new[CP_DZ] = dz
     st_new[CP_SIGN] = s
     return status
 
@@ -239,4 +250,82 @@ def initial_state(traction_t: float, traction_n: float, c_p: float) -> np.ndarra
     st[CP_T], st[CP_T + 1] = traction_t, traction_n
     st[CP_CP] = c_p
     st[CP_SIGN] = 1.0 if traction_t >= 0.0 else -1.0
+    return st
+
+
+# -- the law in 3D: isotropic in the crack's plane -------------------------------------------------
+
+C3_T0 = 0  # traction when the crack was cut (t1, t2, n) [Pa], slots 0..2
+C3_JP = 3  # plastic jump (t1, t2, n) [m], slots 3..5
+C3_GAMMA = 6  # gamma [m]
+C3_ZETA = 7  # accumulated slip zeta [m]
+C3_CP = 8  # peak cohesion c_p [Pa]
+C3_T = 9  # traction (t1, t2, n) [Pa], slots 9..11
+C3_J = 12  # jump (t1, t2, n) [m], slots 12..14
+C3_MODE = 15  # as CP_MODE
+C3_DZ = 16  # d(zeta) of the last update [m]
+N_C3 = 17
+
+
+@inner
+def crack_return_3d(j, st_old, law, kt, kn, st_new, tr, d):
+    """One update of a 3D crack point at the jump j (3,) [m] in its frame (t1, t2, n): the law of
+    :func:`return_trial` on the plane of the tangential trial traction (isotropic in the crack's
+    plane: |T_t| for T_t, the slip along the trial's direction e), st_new, the traction tr (3,) [Pa]
+    and the tangent d (3, 3) [Pa/m]: the 2D tangent along e and n, and |T_t| / |T_t,tr| kt across e
+    (a trial turning in the plane turns the traction). Exactly the 2D law where T_t2 = 0."""
+    for k in range(st_old.shape[0]):
+        st_new[k] = st_old[k]
+    t1 = st_old[C3_T0] + kt * (j[0] - st_old[C3_JP])
+    t2 = st_old[C3_T0 + 1] + kt * (j[1] - st_old[C3_JP + 1])
+    tn_tr = st_old[C3_T0 + 2] + kn * (j[2] - st_old[C3_JP + 2])
+    rho = math.sqrt(t1 * t1 + t2 * t2)
+    e1, e2 = (t1 / rho, t2 / rho) if rho > 0.0 else (1.0, 0.0)
+    res = np.empty(7)
+    d2 = np.empty((2, 2))
+    status = return_trial(rho, tn_tr, 1.0, st_old[C3_GAMMA], st_old[C3_CP], st_old[C3_MODE], law, kt, kn, res, d2)
+    t_t, t_n, gamma, psi, dz, dl, mode = res[0], res[1], res[2], res[3], res[4], res[5], res[6]
+    tr[0], tr[1], tr[2] = t_t * e1, t_t * e2, t_n
+    across = t_t / rho * kt if rho > 0.0 else d2[0, 0]  # the stiffness of a turning trial
+    e = (e1, e2)
+    for a in range(2):
+        for b in range(2):
+            dab = e[a] * e[b]
+            d[a, b] = d2[0, 0] * dab + across * ((1.0 if a == b else 0.0) - dab)
+        d[a, 2] = d2[0, 1] * e[a]
+        d[2, a] = d2[1, 0] * e[a]
+    d[2, 2] = d2[1, 1]
+    for k in range(3):
+        st_new[C3_J + k] = j[k]
+        st_new[C3_T + k] = tr[k]
+    st_new[C3_DZ] = dz
+    st_new[C3_MODE] = mode
+    if mode == 0.0:
+        return status
+    cp = math.cos(psi)
+    st_new[C3_JP] = st_old[C3_JP] + dz * cp * e1
+    st_new[C3_JP + 1] = st_old[C3_JP + 1] + dz * cp * e2
+    st_new[C3_JP + 2] = st_old[C3_JP + 2] + dz * math.sin(psi) + dl
+    st_new[C3_GAMMA] = gamma
+    st_new[C3_ZETA] = st_old[C3_ZETA] + dz
+    return status
+
+
+@kernel
+def crack_point_update_3d(j, st_old, law, kt, kn):
+    """:func:`crack_return_3d` from Python (tests): (status, new state, traction (3,), tangent (3, 3))."""
+    st_new = np.empty(st_old.shape[0])
+    tr = np.empty(3)
+    d = np.empty((3, 3))
+    status = crack_return_3d(j, st_old, law, kt, kn, st_new, tr, d)
+    return status, st_new, tr, d
+
+
+def initial_state_3d(traction: np.ndarray, c_p: float) -> np.ndarray:
+    """A 3D crack point's state when its cell is cut: the stress's traction (t1, t2, n) [Pa] on the
+    new surface, no jump yet, and its peak cohesion c_p [Pa]."""
+    st = np.zeros(N_C3)
+    st[C3_T0:C3_T0 + 3] = traction
+    st[C3_T:C3_T + 3] = traction
+    st[C3_CP] = c_p
     return st

@@ -1,13 +1,21 @@
 """The paper's specimen (Sect. 7, PAPER_NOTES): a W x H plane-strain block, in 2D cut by a straight
-crack through its centre, or in 3D a block of hexahedra of some thickness (the EDE case)."""
+crack through its centre, or in 3D a block of hexahedra of some thickness (the EDE case), which a
+generated 3D block also uses, as hexahedra or split into tetrahedra."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 
 from rockfrac.mesh.mesh import Mesh
+from rockfrac.mesh.topology import boundary_faces
+
+_CORNERS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]  # VTK hex8
+# the six tetrahedra of a hexahedron around its diagonal 0-6 (Kuhn): the edge paths 0 -> 6, one per axis order
+KUHN = np.array([[_CORNERS.index(tuple(np.sum(np.eye(3, dtype=int)[list(order[:k])], axis=0)))
+                  for k in range(4)] for order in itertools.permutations(range(3))])
 
 
 def _block(corners: np.ndarray, nx: int, ny: int, offset: int) -> tuple[np.ndarray, np.ndarray]:
@@ -126,3 +134,26 @@ def hex_specimen(width: float = 0.04, height: float = 0.08, thickness: float = 0
         regions = {"weak": np.flatnonzero(inside), "bulk": np.flatnonzero(~inside)}
     return Mesh(nodes=nodes, cells=cells, cell_type="hex8", node_sets=node_sets,
                 face_sets={"left": left, "right": right}, regions=regions)
+
+
+def split_into_tets(mesh: Mesh) -> Mesh:
+    """The hexahedra of a structured grid (every cell's local axes along x, y, z) each split into six
+    tetrahedra around its diagonal 0-6, which makes the tetrahedra conforming; hexahedron k becomes
+    tetrahedra 6k..6k+5 (regions follow), node sets are kept, face sets become the triangles on them."""
+    if mesh.cell_type != "hex8":
+        raise ValueError(f"split_into_tets takes a hex8 mesh, not {mesh.cell_type}")
+    cells = mesh.cells[:, KUHN].reshape(-1, 4)
+    x = mesh.nodes[cells]
+    volume = np.einsum("ki,ki->k", np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), x[:, 3] - x[:, 0])
+    cells[volume < 0] = cells[volume < 0][:, [0, 2, 1, 3]]  # right-handed
+    tets = Mesh(nodes=mesh.nodes, cells=cells, cell_type="tet4", node_sets=dict(mesh.node_sets))
+    faces = boundary_faces(tets)
+    on = {}
+    for name, quads in mesh.face_sets.items():
+        inside = np.zeros(mesh.nodes.shape[0], bool)
+        inside[quads.ravel()] = True
+        on[name] = faces[inside[faces].all(axis=1)]
+    six = np.arange(6)
+    regions = {k: (6 * v[:, None] + six).ravel() for k, v in mesh.regions.items()}
+    return Mesh(nodes=mesh.nodes, cells=cells, cell_type="tet4", node_sets=dict(mesh.node_sets),
+                face_sets=on, regions=regions)

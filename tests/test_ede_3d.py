@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from rockfrac.case.schema import CaseError, parse_case
-from rockfrac.elements.ede_planes import EDGES, fan_triangles, plane_polygons, polygon_areas
+from rockfrac.fem.planes import EDGES, fan_triangles, plane_polygons, polygon_areas
 from rockfrac.mesh import rock_tests as rt
 from rockfrac.output.csvout import read_csv
 from rockfrac.runner import run_case

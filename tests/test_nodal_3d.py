@@ -20,7 +20,7 @@ import pytest
 
 from rockfrac.case.build import build
 from rockfrac.case.schema import parse_case
-from rockfrac.elements.ede_planes import EDGES, plane_polygons, polygon_areas
+from rockfrac.fem.planes import EDGES, plane_polygons, polygon_areas
 from rockfrac.fem.cut_cell import cut_cell_3d
 from rockfrac.fem.reference import HEX8, TET4
 from rockfrac.laws import embedded_penalty as EP

@@ -20,7 +20,7 @@ from rockfrac.elements.ede_paths import (
     Onset,
     share_crack_paths,  # noqa: F401  (re-exported: the case builder imports it from here)
 )
-from rockfrac.elements.ede_planes import in_plane_direction
+from rockfrac.fem.planes import in_plane_direction
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain
 from rockfrac.laws.bifurcation_plane import screen_plane_strain
 from rockfrac.laws.bifurcation_sphere import screen_sphere

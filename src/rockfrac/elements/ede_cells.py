@@ -7,7 +7,7 @@ import numpy as np
 from rockfrac.elements import ede_kernel as K
 from rockfrac.elements.base import Evaluation, Measure
 from rockfrac.elements.ede_paths import CrackPaths, Onset
-from rockfrac.elements.ede_planes import EDGES, plane_polygons, polygon_areas
+from rockfrac.fem.planes import EDGES, plane_polygons, polygon_areas
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.fem.reference import ReferenceElement
 from rockfrac.laws.drucker_prager_params import DruckerPrager
@@ -316,7 +316,7 @@ class EmbeddedCells(DruckerPragerSolid):
         s[cells[ok], K.E_Q] = q[ok]
 
     def surface_polygons(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """A general 3D body: where each cut cell's surface cuts it (rockfrac.elements.ede_planes.
+        """A general 3D body: where each cut cell's surface cuts it (rockfrac.fem.planes.
         plane_polygons: vertices (k, 6, 3) [m], their edges' end nodes (local to the cell) and places)."""
         cells = np.asarray(cells, dtype=np.int64)
         normal = self.e_state[cells, K.E_N:K.E_N + 3]

@@ -9,7 +9,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from rockfrac.elements import ede_kernel as K
-from rockfrac.elements.ede_planes import EDGES, plane_polygons
+from rockfrac.fem.planes import EDGES, plane_polygons
 from rockfrac.laws.bifurcation import localization_at
 from rockfrac.laws.bifurcation_plane import MAX_MINIMA, minima_plane_strain
 from rockfrac.mesh.topology import HEX_FACES, TET_FACES

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rockfrac.fem.planes import EDGES, plane_polygons
 from rockfrac.fem.reference import TRIANGLE_RULE, ReferenceElement
 
 
@@ -159,8 +160,6 @@ def cut_cell_3d(ref: ReferenceElement, xe: np.ndarray, point: np.ndarray, normal
     points each) and the crack's polygon fanned into triangles (three points each for a tetrahedron,
     whose shape functions are linear on it; six, degree 4, for a hexahedron). ``crack_edges`` here
     lists the faces of the cell (indices into FACES) the crack crosses."""
-    from rockfrac.elements.ede_planes import EDGES, plane_polygons
-
     edges = EDGES[ref.name]
     d = (xe - point) @ normal
     xs, ws, sides = [], [], []

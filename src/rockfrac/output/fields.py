@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac.elements.ede_planes import MAX_VERTICES, fan_triangles
+from rockfrac.fem.planes import MAX_VERTICES, fan_triangles
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
 

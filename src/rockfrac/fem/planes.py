@@ -1,4 +1,4 @@
-"""Embedded crack planes in 3D cells: the polygon where a cell's surface cuts it, its area, and the
+"""Planes through 3D cells (embedded cracks): the polygon where a cell's surface cuts it, its area, and the
 cells a plane given in advance crosses. Coordinates in m; a cell is convex (hex8 with planar faces,
 tet4), so a plane cuts it in one convex polygon of 3 to 6 vertices, each on one of its edges."""
 

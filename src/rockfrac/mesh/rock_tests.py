@@ -186,29 +186,43 @@ def notched_beam(path: str | Path, length: float = 0.2, height: float = 0.05, sp
 
 
 def box(path: str | Path, size: tuple[float, float, float] = (1.0, 1.0, 1.0),
-        divisions: tuple[int, int, int] = (2, 2, 2), element: str = "hex8") -> Path:
+        divisions: tuple[int, int, int] = (2, 2, 2), element: str = "hex8", layers: int = 1) -> Path:
     """A structured box [0, lx] x [0, ly] x [0, lz] [m] (region rock), ``divisions`` cells along x,
     y, z (element "hex8"; "tet4": each hexahedron split into tetrahedra by Gmsh); faces left/right
     (x = 0, lx), front/back (y = 0, ly), bottom/top (z = 0, lz), and the edges where two meet, named
-    after both (bottom_left, ..., front_left, back_right: z-faces first, then y-faces)."""
+    after both (bottom_left, ..., front_left, back_right: z-faces first, then y-faces). ``layers`` > 1
+    (dividing divisions[2]): the box is a stack of that many equal slabs, each a volume of its own,
+    in regions "even" and "odd" by turns from the base (cohesive surfaces on their boundaries lie on
+    every internal plane between slabs); one slab: region "rock"."""
     import gmsh
 
     if element not in ("hex8", "tet4"):
         raise ValueError(f"element must be 'hex8' or 'tet4', got {element!r}")
+    if isinstance(layers, bool) or not isinstance(layers, int) or layers < 1 or divisions[2] % layers:
+        raise ValueError(f"layers must be a whole number >= 1 dividing divisions[2] = {divisions[2]}, got {layers!r}")
     lx, ly, lz = size
+    nz = layers
     with gmsh_session("rockfrac_box"):
-        gmsh.model.occ.addBox(0, 0, 0, lx, ly, lz)
+        slabs = [gmsh.model.occ.addBox(0, 0, k * lz / nz, lx, ly, lz / nz) for k in range(nz)]
+        if nz > 1:
+            gmsh.model.occ.fragment([(3, slabs[0])], [(3, t) for t in slabs[1:]])
         gmsh.model.occ.synchronize()
         for _, c in gmsh.model.getEntities(1):
             x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(1, c)
             axis = max(range(3), key=lambda i: (x1 - x0, y1 - y0, z1 - z0)[i])
-            gmsh.model.mesh.setTransfiniteCurve(c, divisions[axis] + 1)
+            gmsh.model.mesh.setTransfiniteCurve(c, (divisions[axis] if axis < 2 else divisions[2] // nz) + 1)
         for _, s in gmsh.model.getEntities(2):
             gmsh.model.mesh.setTransfiniteSurface(s)
             if element == "hex8":
                 gmsh.model.mesh.setRecombine(2, s)
-        gmsh.model.mesh.setTransfiniteVolume(1)
-        gmsh.model.addPhysicalGroup(3, [1], name="rock")
+        volumes = sorted((gmsh.model.getBoundingBox(3, v)[2], v) for _, v in gmsh.model.getEntities(3))
+        for _, v in volumes:
+            gmsh.model.mesh.setTransfiniteVolume(v)
+        if nz == 1:
+            gmsh.model.addPhysicalGroup(3, [volumes[0][1]], name="rock")
+        else:
+            gmsh.model.addPhysicalGroup(3, [v for _, v in volumes[0::2]], name="even")
+            gmsh.model.addPhysicalGroup(3, [v for _, v in volumes[1::2]], name="odd")
         e = 1e-3 * min(size)  # OCC pads bounding boxes by its tolerance (~1e-7 m): a margin relative to the box
         for name, axis, at in (("left", 0, 0.0), ("right", 0, lx), ("front", 1, 0.0), ("back", 1, ly),
                                ("bottom", 2, 0.0), ("top", 2, lz)):

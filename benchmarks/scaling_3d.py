@@ -15,6 +15,12 @@ axial strain steps of -4e-3 (the second yields), y held at both faces (plane str
 homogeneous, so every mesh must give the material-point driver's axial stress
 (``rockfrac.laws.dp_driver``, the same steps): its relative error is in the table.
 
+``--problem joints-ep`` / ``joints-rp``: the elastic box as a stack of four slabs (rock_tests.box
+layers=4) with cohesive joints on the three planes between them ([cohesive] where = 'boundaries'),
+elasto-plastic (penalty kn = kt = 1e11 Pa/m) or rigid-plastic (augmented multipliers: a saddle-point
+tangent), under the top pressure: uniaxial stress, so u_z = -p z / E - (joints below) p / kn (EP;
+RP: the unsplit box's -p z / E) at every node, the table's error.
+
 Backends: ``pardiso`` (MKL, the default 'auto') and ``gmres-amg`` (GMRES(60) with pyamg's smoothed
 aggregation on 3 x 3 nodal blocks and the six rigid-body modes, relative residual 1e-11).
 Options: ``--sizes 1e4 1e5 3e5 1e6``, ``--elements hex8 tet4``, ``--backends pardiso gmres-amg``,
@@ -46,9 +52,16 @@ DP = {"model": "drucker_prager", "E": 1.5e7, "nu": 0.3, "beta": 0.480385, "b": 0
 CONFINEMENT, AXIAL_STRAIN, AXIAL_STEPS = 2e4, -8e-3, 2  # elastic, then yielding
 
 
-def cells_for(dofs: float) -> int:
-    """Cells per side of the box with about ``dofs`` unknowns (3 per node, (n + 1)^3 nodes)."""
-    return max(2, round((dofs / 3) ** (1 / 3)) - 1)
+LAYERS, KN = 4, 1e11  # the joints problems: slabs, EP penalty [Pa/m]
+JOINT_LAW = {"GfI": 50.0, "GfII": 500.0, "chi_p": 1e6, "chi_r": 0.0, "c_p": 2e6, "c_r": 0.0, "phi_p": 0.6,
+             "phi_r": 0.5, "psi_p": 0.1, "alpha_chi": 5.0, "alpha_c": 5.0, "alpha_phi": 5.0, "alpha_psi": 5.0}
+
+
+def cells_for(dofs: float, problem: str = "elastic") -> int:
+    """Cells per side of the box with about ``dofs`` unknowns (3 per node, (n + 1)^3 nodes); a
+    multiple of the slabs for the joints problems."""
+    n = max(2, round((dofs / 3) ** (1 / 3)) - 1)
+    return max(LAYERS, LAYERS * round(n / LAYERS)) if problem.startswith("joints") else n
 
 
 class TimedFactor:
@@ -91,7 +104,8 @@ def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "
     from rockfrac.solve.stepping import SteppingOptions, run_stages
 
     t0 = time.perf_counter()
-    msh = rt.box(folder / "box.msh", (1.0, 1.0, 1.0), (n, n, n), element=element)
+    joints = problem.startswith("joints")
+    msh = rt.box(folder / "box.msh", (1.0, 1.0, 1.0), (n, n, n), element=element, layers=LAYERS if joints else 1)
     t_mesh = time.perf_counter() - t0
     if problem == "plastic":
         held = {"left": {"x": 0.0}, "front": {"y": 0.0}, "back": {"y": 0.0}, "bottom": {"z": 0.0}}
@@ -105,11 +119,15 @@ def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "
                 "stages": [{"name": "press", "displacement": {"left": {"x": 0.0}, "front": {"y": 0.0},
                                                               "bottom": {"z": 0.0}},
                             "pressure": {"top": P}}], "solver": {"linear": backend}}
+        if joints:
+            form = problem.split("-")[1]
+            spec["cohesive"] = {"where": "boundaries", "form": form, **JOINT_LAW,
+                                **({"kn": KN, "kt": KN} if form == "ep" else {})}
     case = parse_case(spec, "box")
     t0 = time.perf_counter()
     built = build(case)
     t_setup = time.perf_counter() - t0
-    inner = make_solver(backend, built.mesh.nodes)
+    inner = make_solver(backend, built.mesh.nodes, built.model.n_dofs, multipliers=problem == "joints-rp")
     timing = {"solve": 0.0, "factorizations": 0, "gmres_iterations": []}
 
     sol = case.solver
@@ -138,10 +156,16 @@ def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "
         error = abs(sigma_zz - path.sigma[-1, 1]) / abs(path.sigma[-1, 1])
         assert path.mode[-1] != 0.0, "the driver's last step must be plastic"
     else:
-        exact = -P * mesh.nodes[top, 2] / E
-        error = float(np.abs(u[top, 2] - exact).max() / np.abs(exact).max())
+        z = mesh.nodes[:, 2]
+        exact = -P * z / E
+        if problem == "joints-ep":  # each node's slab from a cell holding it (a joint's copies: one side each)
+            slab = np.zeros(mesh.n_nodes)
+            slab[mesh.cells.ravel()] = np.repeat(np.floor(mesh.nodes[mesh.cells][:, :, 2].mean(axis=1) * LAYERS),
+                                                 mesh.cells.shape[1])
+            exact = exact - slab * P / KN
+        error = float(np.abs(u[:, 2] - exact).max() / np.abs(exact).max())
     return {"problem": problem, "element": element, "n": n, "backend": backend, "dofs": int(built.model.n_dofs),
-            "cells": int(mesh.cells.shape[0]), "nnz": int(built.model.pattern.nnz),
+            "cells": int(mesh.cells.shape[0]), "interfaces": int(len(mesh.interfaces)), "nnz": int(built.model.pattern.nnz),
             "completed": bool(result.completed), "newton_iterations": int(state["iterations"]),
             "steps": int(state["steps"]),
             "factorizations": timing["factorizations"], "gmres_iterations": timing["gmres_iterations"],
@@ -191,7 +215,8 @@ def table(rows: list[dict], info: dict) -> str:
             continue
         g = r["gmres_iterations"]
         its = ("/".join(str(i) for i in g) if len(g) <= 3 else f"{min(g)}-{max(g)} over {len(g)} solves") if g else "-"
-        lines.append(f"| {r['element']} | {r['cells']} | {r['dofs']} | {r['backend']} | {r['setup_s']:.2f} | "
+        cells = f"{r['cells']} + {r['interfaces']} interfaces" if r.get("interfaces") else str(r["cells"])
+        lines.append(f"| {r['element']} | {cells} | {r['dofs']} | {r['backend']} | {r['setup_s']:.2f} | "
                      f"{r['assembly_s']:.2f} | {r['solve_s']:.2f} | {r['factorizations']} | {its} | "
                      f"{r['peak_gib']:.2f} | {r['error']:.1e} |")
     return head + "\n".join(lines) + "\n"
@@ -204,7 +229,7 @@ def main() -> None:
     p.add_argument("--backends", nargs="+", default=["pardiso", "gmres-amg"])
     p.add_argument("--timeout", type=float, default=1800.0)
     p.add_argument("--quick", action="store_true")
-    p.add_argument("--problem", choices=["elastic", "plastic"], default="elastic")
+    p.add_argument("--problem", choices=["elastic", "plastic", "joints-ep", "joints-rp"], default="elastic")
     p.add_argument("--max-direct", type=float, default=float("inf"),
                    help="run pardiso only up to this many target dofs (its 3D factorization grows fastest)")
     p.add_argument("--child", nargs=4, metavar=("ELEMENT", "N", "BACKEND", "PROBLEM"))
@@ -221,7 +246,7 @@ def main() -> None:
             for backend in args.backends:
                 if backend == "pardiso" and size > args.max_direct:
                     continue
-                r = child(["--child", element, str(cells_for(size)), backend, args.problem], args.timeout)
+                r = child(["--child", element, str(cells_for(size, args.problem)), backend, args.problem], args.timeout)
                 r.setdefault("element", element)
                 r.setdefault("backend", backend)
                 r["target"] = size

@@ -67,3 +67,28 @@ def test_joints_of_a_pressed_stack_settle_by_p_over_kn(tmp_path, element, form):
     assert np.abs(u[:, 2] - exact_z).max() < 1e-9 * scale
     np.testing.assert_allclose(u[:, 0], NU * P * mesh.nodes[:, 0] / E, atol=1e-9 * scale)
     np.testing.assert_allclose(u[:, 1], NU * P * mesh.nodes[:, 1] / E, atol=1e-9 * scale)
+
+
+def test_sliding_rp_joints_solved_by_gmres_amg_match_the_direct_solve(tmp_path):
+    """The saddle-point tangents of RP joints (multiplier rows, constrained and sliding) solved by
+    GMRES with the block-triangular AMG preconditioner give the direct solver's history: the stack
+    under a pressure, then its top dragged sideways until the joints slide."""
+    box = rt.box(tmp_path / "b.msh", (1.0, 1.0, 1.0), (2, 2, 4), element="tet4", layers=2)
+    histories = {}
+    for linear in ("superlu", "gmres-amg"):
+        case = make_case(mesh={"kind": "gmsh", "file": str(box)}, bulk={"E": E, "nu": NU},
+                         cohesive={"where": "boundaries", "form": "rp", "augmentation": 1e12, **LAW},
+                         stages=[{"name": "press", "displacement": {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                                  "pressure": {"top": P}},
+                                 {"name": "drag", "steps": 6, "pressure": {"top": P},
+                                  "displacement": {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0},
+                                                   "top": {"x": 1.75e-4, "y": 0.0}}}],
+                         solver={"linear": linear}, output={"picture": False})
+        r = run(case, tmp_path / linear)
+        assert r.completed, r.message
+        histories[linear] = r.history
+    direct, krylov = histories["superlu"], histories["gmres-amg"]
+    assert direct["n_plastic"][-1] > 0  # the joint slides
+    np.testing.assert_array_equal(direct["newton_iterations"], krylov["newton_iterations"])
+    for q in ("R_top_x", "u_top_z"):
+        np.testing.assert_allclose(krylov[q], direct[q], rtol=0, atol=1e-8 * np.abs(direct[q]).max())

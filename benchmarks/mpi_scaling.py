@@ -10,6 +10,10 @@ minutes). Each run is its own ``mpiexec -n R`` (its own peak memory per rank):
   penalty 1e12 Pa/m) refined to 2.5e5 dofs; confinement, then 5 axial steps past the crack's
   activation (located as an event, then softening), MUMPS's parallel LU ('petsc'). At 1e6 dofs
   MUMPS's 2D factors outgrow this machine's 24 GiB (the serial run was killed at 24 GiB).
+- **joints**: cohesive at 1e6 dofs: the 3D box (hex8) as a stack of four slabs with rigid-plastic
+  joints on the three planes between them (augmented multipliers: saddle points), under a pressure
+  on the top and dragged sideways until the joints slide (3 steps), GMRES with the Schur field
+  split ('petsc-gamg': GAMG on the displacements, MUMPS on the multipliers' selfp Schur block).
 
 Rows: ``serial`` (rockfrac's serial engine with the same PETSc solver on one process: the overhead
 of the distributed path is the ratio to the 1-rank row), then the distributed engine on 1 and 2
@@ -67,6 +71,24 @@ def case_cohesive(dofs: float) -> dict:
     return case
 
 
+def case_joints(dofs: float, folder: Path) -> dict:
+    """The 3D stack of four slabs with RP joints between them (about ``dofs`` unknowns): pressed,
+    then its top dragged sideways past the joints' strength."""
+    from rockfrac.mesh import rock_tests as rt
+
+    n = max(4, 4 * round((round((dofs / 3) ** (1 / 3)) - 1) / 4))
+    msh = rt.box(folder / "stack.msh", (1.0, 1.0, 1.0), (n, n, n), element="hex8", layers=4)
+    law = {"GfI": 50.0, "GfII": 500.0, "chi_p": 1e6, "chi_r": 0.0, "c_p": 2e6, "c_r": 0.0, "phi_p": 0.6,
+           "phi_r": 0.5, "psi_p": 0.1, "alpha_chi": 5.0, "alpha_c": 5.0, "alpha_phi": 5.0, "alpha_psi": 5.0}
+    held = {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0}}
+    return {"title": "stack", "mesh": {"kind": "gmsh", "file": str(msh)}, "bulk": {"E": 2e10, "nu": 0.25},
+            "cohesive": {"where": "boundaries", "form": "rp", "augmentation": 1e12, **law},
+            "stages": [{"name": "press", "displacement": held, "pressure": {"top": 1e6}},
+                       {"name": "drag", "steps": 2, "pressure": {"top": 1e6},
+                        "displacement": dict(held, top={"x": 1.75e-4, "y": 0.0})}],
+            "solver": {"linear": "petsc-gamg"}, "output": OUT}
+
+
 def case_3d(dofs: float, folder: Path) -> dict:
     from rockfrac.mesh import rock_tests as rt
 
@@ -95,7 +117,8 @@ def child(problem: str, dofs: float, serial: bool, out: Path) -> None:
 
         comm = MPI.COMM_WORLD
     if comm is None or comm.rank == 0:
-        case = {"2d": case_2d, "cohesive": case_cohesive}[problem](dofs) if problem != "3d" else case_3d(dofs, folder)
+        case = ({"2d": case_2d, "cohesive": case_cohesive}[problem](dofs) if problem in ("2d", "cohesive")
+                else {"3d": case_3d, "joints": case_joints}[problem](dofs, folder))
     else:
         case = None
     if comm is not None:
@@ -173,6 +196,7 @@ PLAN = {  # problem -> [(dofs, ranks, serial)]: strong (the size on 1 and 2 rank
     "2d": [(1e6, 1, True), (1e6, 1, False), (1e6, 2, False), (5e5, 1, False)],
     "3d": [(1e6, 1, True), (1e6, 1, False), (1e6, 2, False), (5e5, 1, False)],
     "cohesive": [(2.5e5, 1, True), (2.5e5, 1, False), (2.5e5, 2, False)],
+    "joints": [(1e6, 1, True), (1e6, 1, False), (1e6, 2, False), (5e5, 1, False)],
 }
 
 
@@ -181,7 +205,7 @@ def main() -> None:
     ap.add_argument("--child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
     ap.add_argument("--serial", action="store_true")
     ap.add_argument("--quick", action="store_true", help="small sizes, print only")
-    ap.add_argument("--problems", nargs="+", default=["2d", "3d", "cohesive"])
+    ap.add_argument("--problems", nargs="+", default=["2d", "3d", "cohesive", "joints"])
     ap.add_argument("--timeout", type=float, default=3600.0)
     args = ap.parse_args()
     if args.child:
@@ -198,7 +222,8 @@ def main() -> None:
             rows.append(row)
     if not args.quick:
         path = HERE / "results" / "mpi_scaling.json"
-        path.write_text(json.dumps(rows, indent=1))
+        kept = [r for r in json.loads(path.read_text()) if r["problem"] not in args.problems] if path.exists() else []
+        path.write_text(json.dumps(kept + rows, indent=1))
         print(f"written {path}")
 
 

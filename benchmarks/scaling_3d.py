@@ -127,7 +127,7 @@ def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "
     t0 = time.perf_counter()
     built = build(case)
     t_setup = time.perf_counter() - t0
-    inner = make_solver(backend, built.mesh.nodes, built.model.n_dofs, multipliers=problem == "joints-rp")
+    inner = make_solver(backend, built.mesh.nodes, built.model.n_dofs)
     timing = {"solve": 0.0, "factorizations": 0, "gmres_iterations": []}
 
     sol = case.solver

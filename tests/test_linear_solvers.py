@@ -163,9 +163,28 @@ def test_krylov_amg_equals_superlu_on_the_drucker_prager_tangent(systems):
     assert np.abs(x - ref).max() <= 1e-7 * np.abs(ref).max()
 
 
+def test_krylov_amg_solves_the_rp_saddle_points_given_the_nodes(systems):
+    """Given the mesh's nodes the backend knows which rows are multipliers (after the displacements)
+    and preconditions block-triangularly (rockfrac.solve.saddle): the rigid and the yielding RP
+    tangents of the paper's specimen solve to the direct answer."""
+    pytest.importorskip("pyamg")
+    nodes = build(parse_case(rp_case(16), "t.toml")).mesh.nodes
+    for key in ("rp rigid", "rp plastic"):
+        a = systems[key]
+        assert a.shape[0] > nodes.size  # multipliers
+        b = np.random.default_rng(4).standard_normal(a.shape[0])
+        solver = linear.make_solver("gmres-amg", nodes)
+        factor = solver.factorize(a)
+        x = factor.solve(b)
+        assert np.linalg.norm(a @ x - b) <= 1e-10 * np.linalg.norm(b)
+        ref = linear.SuperLU().solve(a, b)
+        assert np.abs(x - ref).max() <= 1e-7 * np.abs(ref).max()
+        assert factor.iterations < 200
+
+
 def test_krylov_amg_reports_failure_on_the_rp_tangents_and_newton_cuts_back(systems):
     pytest.importorskip("pyamg")
-    for key in ("rp rigid", "rp plastic"):  # measured: the multiplier rows defeat the AMG at this size
+    for key in ("rp rigid", "rp plastic"):  # without the nodes: AMG on the whole saddle point fails
         a = systems[key]
         b = np.random.default_rng(4).standard_normal(a.shape[0])
         with pytest.raises(linear.SolverFailed, match="GMRES did not converge"):
@@ -315,8 +334,8 @@ def test_tiny_systems_are_factorized_densely_with_the_sparse_answer(name):
 
 
 def test_auto_in_3d_takes_amg_from_its_size_and_hands_over_to_the_direct_backend(systems):
-    """'auto': a 3D model of AMG_FROM_3D dofs or more without multipliers gets GMRES + AMG (six
-    rigid-body modes), a smaller one, a 2D one or one with RP multipliers the direct backend; at the
+    """'auto': a 3D model of AMG_FROM_3D dofs or more without nodal cracks' enrichment gets GMRES +
+    AMG (six rigid-body modes), a smaller one, a 2D one or one with enrichment the direct backend; at the
     first failure of GMRES the direct backend solves, the same iteration and from then on."""
     pytest.importorskip("pyamg")
     direct = linear.make_solver("auto").name
@@ -324,7 +343,7 @@ def test_auto_in_3d_takes_amg_from_its_size_and_hands_over_to_the_direct_backend
     big = linear.AMG_FROM_3D
     assert isinstance(linear.make_solver("auto", x3, big), linear.Handover)
     assert linear.make_solver("auto", x3, big - 1).name == direct
-    assert linear.make_solver("auto", x3, big, multipliers=True).name == direct
+    assert linear.make_solver("auto", x3, big, enrichment=True).name == direct
     assert linear.make_solver("auto", x3[:, :2], 10 * big).name == direct
     # the rigid-body modes: a rigid motion has no strain, so K B = 0 on an unconstrained elastic body
     from rockfrac.elements.solid import ElasticSolid

@@ -20,6 +20,7 @@ from rockfrac.analytic import penalty_rule, plane_strain_modulus
 from rockfrac.case.build import Built, Distribution, build, mean_cell_size
 from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
+from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
 from rockfrac.output import checkpoint
@@ -347,7 +348,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             newton, stepping = engine_options(built, stop)
             if distribution is None:
                 solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
-                                     any(g.n_extra for g in built.model.groups))
+                                     enrichment=any(isinstance(g, HeldEnrichment) for g in built.model.groups))
             else:
                 solver = distribution.make_solver(sol.linear.value)
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")

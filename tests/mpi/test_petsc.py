@@ -134,3 +134,30 @@ def test_a_path_following_rp_run_through_petsc_gives_the_serial_history(tmp_path
     # the same Newton path; a step may end one iteration apart where the round-off of the two
     # factorizations meets the convergence test
     assert np.abs(np.asarray(a["newton_iterations"]) - np.asarray(b["newton_iterations"])).max() <= 1
+
+
+def test_rp_joints_through_petsc_krylov_take_the_schur_field_split(tmp_path):
+    """RP joints between the slabs of a 3D stack (saddle points), pressed, then dragged until a joint
+    slides: petsc-gamg and petsc-hypre (GMRES with PETSc's Schur field split: the AMG on the
+    displacements, MUMPS on the multipliers' selfp block) give SuperLU's history, step by step."""
+    box = rt.box(tmp_path / "b.msh", (1.0, 1.0, 1.0), (2, 2, 4), element="tet4", layers=2)
+    law = {"GfI": 50.0, "GfII": 500.0, "chi_p": 1e6, "chi_r": 0.0, "c_p": 2e6, "c_r": 0.0, "phi_p": 0.6,
+           "phi_r": 0.5, "psi_p": 0.1, "alpha_chi": 5.0, "alpha_c": 5.0, "alpha_phi": 5.0, "alpha_psi": 5.0}
+    held = {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0}}
+    runs = {}
+    for name in ("superlu", "petsc-gamg", "petsc-hypre"):
+        case = make_case(mesh={"kind": "gmsh", "file": str(box)}, bulk={"E": 2e10, "nu": 0.25},
+                         cohesive={"where": "boundaries", "form": "rp", "augmentation": 1e12, **law},
+                         stages=[{"name": "press", "displacement": held, "pressure": {"top": 1e6}},
+                                 {"name": "drag", "steps": 6, "pressure": {"top": 1e6},
+                                  "displacement": dict(held, top={"x": 1.75e-4, "y": 0.0})}],
+                         solver={"linear": name}, output={"picture": False})
+        r = run(case, tmp_path / name)
+        assert r.completed, r.message
+        runs[name] = r.history
+    ref = runs["superlu"]
+    assert ref["n_plastic"][-1] > 0
+    for name in ("petsc-gamg", "petsc-hypre"):
+        np.testing.assert_array_equal(runs[name]["newton_iterations"], ref["newton_iterations"])
+        for q in ("R_top_x", "u_top_z"):
+            np.testing.assert_allclose(runs[name][q], ref[q], rtol=0, atol=1e-9 * np.abs(ref[q]).max())

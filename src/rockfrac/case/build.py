@@ -143,15 +143,6 @@ def resolve(case: Case, path: str = "<case>") -> Case:
     return case.model_copy(update={"cohesive": sets})
 
 
-def refuse_distributed(case: Case, path: str) -> None:
-    """CaseError for what does not run on several MPI ranks, named (rockfrac.parallel)."""
-    rp = [k for k, c in enumerate(case.cohesive_sets) if c.form is CohesiveForm.rp]
-    if rp and case.solver.linear.value in ("petsc-gamg", "petsc-hypre"):
-        raise CaseError(f"{path}: [solver] linear = '{case.solver.linear.value}' with rigid-plastic surfaces ([cohesive] "
-                        f"({rp[0] + 1}) form = 'rp') on several MPI ranks: their multipliers make saddle points that "
-                        "an AMG preconditioner does not take; use 'auto' or 'petsc' (MUMPS's LU)")
-
-
 def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:
     """The model: mesh (split where cohesive surfaces go), bulk and surface groups, the loading program.
 
@@ -161,7 +152,6 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     owned, part = None, None
     if distribution is not None:
-        refuse_distributed(case, path)
         part = distribution.split(mesh)
         owned = part.cell_part == distribution.rank
     try:

@@ -42,6 +42,7 @@ class Layout:
         missing = np.setdiff1d(self.owned, self.local)
         if missing.size:  # an owned dof no element of the rank touches: not a partition of this mesh
             raise ValueError(f"rank {rank} owns dofs {missing[:5].tolist()} that none of its elements touches")
+        self.n_displacement = nodes.size  # rockfrac numbers the displacements first, then multipliers
         blocks = self.owned[::partition.dim] // partition.dim
         self.coordinates = nodes[blocks[blocks < nodes.shape[0]]]  # owned nodes (not multipliers), PETSc order
         self.owned_mask = np.zeros(self.n, dtype=np.bool_)
@@ -88,16 +89,33 @@ class Layout:
         v.assemblyEnd()
         return self.from_vec(v)
 
+    @property
+    def has_multipliers(self) -> bool:
+        """Dofs beyond the displacements (RP multipliers) somewhere in the model (alike on every rank)."""
+        return self.n > self.n_displacement
+
     def rigid_modes(self):
-        """The rigid-body modes of the owned nodes (PETSc's orthonormal near-null space), made once."""
+        """The rigid-body modes of the owned nodes (PETSc's orthonormal near-null space) on the
+        displacement rows (all the rows without multipliers), made once."""
         if self._modes is None:
             PETSc = petsc()
             dim = self.coordinates.shape[1]
             x = PETSc.Vec().createWithArray(np.ascontiguousarray(self.coordinates.ravel()),
-                                            size=(self.hi - self.lo, self.n), bsize=dim, comm=self.comm)
+                                            size=(self.coordinates.size, self.n_displacement), bsize=dim,
+                                            comm=self.comm)
             self._modes = PETSc.NullSpace().createRigidBody(x)
             x.destroy()
         return self._modes
+
+    def fields(self):
+        """PETSc index sets of the owned rows: displacements (in nodal blocks), multipliers."""
+        PETSc = petsc()
+        rows = self.lo + np.arange(self.hi - self.lo)
+        is_u = self.owned < self.n_displacement
+        u = PETSc.IS().createGeneral(rows[is_u].astype(PETSc.IntType), comm=self.comm)
+        u.setBlockSize(self.coordinates.shape[1])
+        lam = PETSc.IS().createGeneral(rows[~is_u].astype(PETSc.IntType), comm=self.comm)
+        return u, lam
 
     def gather(self, x: np.ndarray) -> np.ndarray:
         """The full vector on every rank, each entry from its owner (output, tests)."""

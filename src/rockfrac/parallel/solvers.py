@@ -9,15 +9,15 @@ import numpy as np
 
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
-from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp
+from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp, saddle_options, split_fields
 
 
 class _Factor(KspFactor):
     """A configured KSP on one distributed matrix: ``solve(b)`` as often as needed (destroyed when
     dropped, :class:`rockfrac.solve.petsc.KspFactor`)."""
 
-    def __init__(self, ksp, layout: Layout):
-        super().__init__(ksp)
+    def __init__(self, ksp, layout: Layout, *owned):
+        super().__init__(ksp, *owned)
         self._layout = layout
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -38,21 +38,30 @@ class DistributedSolver(OneFactorAlive):
     name = ""
     options: dict[str, str] = {}
     rigid_modes = False  # give the preconditioner the rigid-body modes as its near-null space
+    krylov = False  # an iterative solver: a Schur field split where there are multipliers
 
     def factorize(self, a: DistributedMatrix) -> _Factor:
         PETSc = petsc()
-        if self.rigid_modes:
-            a.mat.setNearNullSpace(a.layout.rigid_modes())
+        layout = a.layout
+        saddle = self.krylov and layout.has_multipliers
+        modes = layout.rigid_modes() if self.rigid_modes else None
+        if modes is not None and not saddle:
+            a.mat.setNearNullSpace(modes)
         self._release_last()
-        ksp = PETSc.KSP().create(comm=a.layout.comm)
+        ksp = PETSc.KSP().create(comm=layout.comm)
         ksp.setOperators(a.mat)
         prefix = f"rockfrac_{self.name.replace('-', '_')}_"
         ksp.setOptionsPrefix(prefix)
         opts = PETSc.Options()
-        for k, v in self.options.items():
+        for k, v in (saddle_options(self.options) if saddle else self.options).items():
             opts[prefix + k] = v
+        owned: tuple = ()
+        if saddle:
+            ksp.getPC().setType("fieldsplit")
+            owned = layout.fields()
+            split_fields(ksp, owned[0], owned[1], modes)
         ksp.setFromOptions()
-        return self._ready(_Factor(ksp, a.layout), f"PETSc {self.name} set-up")
+        return self._ready(_Factor(ksp, layout, *owned), f"PETSc {self.name} set-up")
 
     def solve(self, a: DistributedMatrix, b: np.ndarray) -> np.ndarray:
         return self.factorize(a).solve(b)
@@ -70,6 +79,7 @@ class KrylovGAMG(DistributedSolver):
 
     name = "petsc-gamg"
     rigid_modes = True
+    krylov = True
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
                "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "gamg"}
 
@@ -78,6 +88,7 @@ class KrylovHypre(DistributedSolver):
     """GMRES(60) with hypre's BoomerAMG."""
 
     name = "petsc-hypre"
+    krylov = True
     options = {"ksp_type": "gmres", "ksp_gmres_restart": "60", "ksp_rtol": "1e-11", "ksp_atol": "0",
                "ksp_max_it": "600", "ksp_pc_side": "right", "pc_type": "hypre",
                "pc_hypre_type": "boomeramg"}

@@ -373,26 +373,28 @@ def available() -> list[str]:
 
 # fastest first, measured in benchmarks/README.md ("Linear solvers"): PARDISO on every system from
 # 1e4 to 1e6 dofs; MUMPS before SuperLU on 5 of the 6 (not the 1e6-dof band); the iterative
-# backend is never chosen by 'auto' (it fails on the RP CSE's saddle points)
+# backend is chosen by 'auto' only for large 3D models (AMG_FROM_3D)
 PREFERENCE = ("pardiso", "mumps", "superlu")
 
 
-# 'auto' on a 3D model without multiplier dofs: GMRES + AMG from this many dofs, the direct backend
-# below (benchmarks/README.md, "3D scaling": PARDISO's 3D fill grows faster than AMG's work)
+# 'auto' on a 3D model: GMRES + AMG from this many dofs, the direct backend below (benchmarks/README.md,
+# "3D scaling": PARDISO's 3D fill grows faster than AMG's work; with RP joints, "3D joints to 1e6 dofs")
 AMG_FROM_3D = 100_000
 
 
 def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 0,
-                multipliers: bool = False) -> LinearSolver:
+                enrichment: bool = False) -> LinearSolver:
     """Backend by name ('auto': the fastest installed); raises ValueError listing the available ones.
-    coordinates: the mesh's nodes, which the iterative backend uses for its near-null space in 3D.
-    'auto' on a 3D model of at least AMG_FROM_3D dofs without multipliers (no RP surfaces): GMRES +
-    AMG, handing over to the direct backend at its first failure."""
+    coordinates: the mesh's nodes, which the iterative backend uses for its near-null space in 3D
+    (and to tell RP multipliers, numbered after the displacements, from them).
+    'auto' on a 3D model of at least AMG_FROM_3D dofs (RP multipliers or not) without nodal cracks'
+    ``enrichment`` (their unknowns span the region that may crack: a Schur block as large as that
+    is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure."""
     if name == "auto":
         installed = available()
         direct = SOLVERS[next(n for n in PREFERENCE if n in installed)]()
         three_d = coordinates is not None and coordinates.shape[1] == 3
-        if three_d and n_dofs >= AMG_FROM_3D and not multipliers and "gmres-amg" in installed:
+        if three_d and n_dofs >= AMG_FROM_3D and not enrichment and "gmres-amg" in installed:
             return Handover(KrylovAMG(coordinates), direct)
         return direct
     if name not in SOLVERS:

@@ -10,6 +10,11 @@ Both Krylov solvers precondition on the right, so that their tolerance is on the
 (a singular preconditioner cannot make a left-preconditioned residual small on a system without
 a solution).
 
+With multiplier rows (the RP CSE's saddle points, numbered after the displacements) the Krylov
+solvers precondition by PETSc's Schur field split: ``upper`` factorization, the AMG on the
+displacement block, MUMPS's LU on the multipliers' ``selfp`` Schur approximation C - B2 diag(A)^-1
+B1 (the serial ``gmres-amg``'s preconditioner, :mod:`rockfrac.solve.saddle`, in PETSc's terms).
+
 The same names run on several MPI ranks (:mod:`rockfrac.parallel.solvers`).
 
 petsc4py is not a dependency of the serial install: Debian's ``python3-petsc4py-real`` (PETSc 3.18
@@ -48,6 +53,29 @@ def run_ksp(ksp, rhs, x) -> int:
     if reason < 0:
         raise SolverFailed(f"PETSc KSP did not converge (reason {reason}, {iterations} iterations)")
     return iterations
+
+
+SADDLE_OPTIONS = {"pc_type": "fieldsplit", "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "upper",
+                  "pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_u_ksp_type": "preonly",
+                  "fieldsplit_lambda_ksp_type": "preonly", "fieldsplit_lambda_pc_type": "lu",
+                  "fieldsplit_lambda_pc_factor_mat_solver_type": "mumps"}
+
+
+def saddle_options(options: dict[str, str]) -> dict[str, str]:
+    """A Krylov solver's options with its preconditioner moved onto the displacement split of a
+    Schur field split (the multipliers' block by LU)."""
+    out = {k: v for k, v in options.items() if not k.startswith("pc_")}
+    out.update(SADDLE_OPTIONS)
+    out.update({"fieldsplit_u_" + k: v for k, v in options.items() if k.startswith("pc_")})
+    return out
+
+
+def split_fields(ksp, displacement, multipliers, modes=None) -> None:
+    """Give the KSP's field split its two index sets (PETSc rows this process owns: displacements,
+    multipliers), the displacement split the near-null space ``modes`` (or None)."""
+    if modes is not None:
+        displacement.compose("nearnullspace", modes)
+    ksp.getPC().setFieldSplitIS(("u", displacement), ("lambda", multipliers))
 
 
 class KspFactor:
@@ -172,17 +200,31 @@ class PetscGAMG(_PetscBackend):
         petsc = _petsc()
         m = self._matrix(a)
         x = self._coordinates
-        if x is not None and a.shape[0] == x.size:  # the rigid-body modes (3 in 2D, 6 in 3D), orthonormal
-            m.setBlockSize(x.shape[1])
-            coords = petsc.Vec().createWithArray(np.ascontiguousarray(x.ravel()), bsize=x.shape[1],
-                                                 comm=petsc.COMM_SELF)
-            modes = petsc.NullSpace().createRigidBody(coords)
-            m.setNearNullSpace(modes)  # the matrix keeps its reference: ours are freed
-            modes.destroy()
-            coords.destroy()
-        ksp, _, _ = self._ksp(m)
+        owned: list = [m]
+        if x is None or a.shape[0] < x.size:  # no nodes to build the rigid-body modes from
+            ksp, _, _ = self._ksp(m)
+            ksp.setFromOptions()
+            return self._ready(_PetscFactor(ksp, *owned), "PETSc GAMG set-up")
+        dim, n_u = x.shape[1], x.size
+        coords = petsc.Vec().createWithArray(np.ascontiguousarray(x.ravel()), bsize=dim, comm=petsc.COMM_SELF)
+        modes = petsc.NullSpace().createRigidBody(coords)  # 3 in 2D, 6 in 3D, orthonormal
+        coords.destroy()
+        ksp, opts, prefix = self._ksp(m)
+        if a.shape[0] > n_u:  # multipliers after the displacements: the Schur field split
+            for k, v in saddle_options(self.options).items():
+                opts[prefix + k] = v
+            ksp.getPC().setType("fieldsplit")
+            u = petsc.IS().createStride(n_u, 0, 1, comm=petsc.COMM_SELF)
+            u.setBlockSize(dim)
+            lam = petsc.IS().createStride(a.shape[0] - n_u, n_u, 1, comm=petsc.COMM_SELF)
+            split_fields(ksp, u, lam, modes)
+            owned += [u, lam]
+        else:
+            m.setBlockSize(dim)
+            m.setNearNullSpace(modes)  # the matrix keeps its reference
+        modes.destroy()  # whoever uses them holds a reference
         ksp.setFromOptions()
-        return self._ready(_PetscFactor(ksp, m), "PETSc GAMG set-up")
+        return self._ready(_PetscFactor(ksp, *owned), "PETSc GAMG set-up")
 
 
 class PetscHypre(PetscGAMG):

@@ -269,3 +269,35 @@ def test_a_band_grown_through_tetrahedra_is_one_plane_and_softens_to_the_closed_
     assert h["F_axial"][-1] == pytest.approx(reference, rel=0.01)
     assert h["F_axial"].max() > 5 * h["F_axial"][-1]
     assert np.abs(h["energy_error"]).max() < 1e-9 * h["D_dissipated"][-1]
+
+
+@pytest.mark.parametrize("element", ["tet4", "hex8"])
+def test_in_situ_stress_with_a_plane_across_is_an_equilibrium_in_3d(tmp_path, element):
+    """A general anisotropic in-situ stress (every shear component) held by its tractions on the whole
+    boundary, the inclined plane cut after it is set: u = 0, q = 0 is the exact solution, the
+    enriched unknowns' share of the in-situ tractions on the faces the plane crosses included
+    (it is not zero, and the residual without it is not)."""
+    msh = rt.box(tmp_path / "box.msh", (W, W, H), (4, 1, 8), element=element)
+    case = nodal_plane(msh)
+    case.pop("loading", None)
+    case.pop("stages", None)
+    sigma0 = [-P, -1.3 * P, -1.6 * P, 0.1 * P, -0.05 * P, 0.08 * P]  # xx, yy, zz, xy, yz, xz [Pa]
+    case["initial"] = {"stress": [{"stress": sigma0}]}
+    case["stages"] = [{"name": "hold", "displacement": {"bottom": {"z": 0.0}, "bottom_left": {"x": 0.0},
+                                                        "front": {"y": 0.0}}}]
+    built = build(parse_case(case))
+    model, stage = built.model, built.program.stages[0]
+    registry = built.embeddeds[0].registry
+    f0 = built.program.f0
+    own = f0.copy()
+    _EnrichedLoads(model, built.program.stages, f0)()
+    share = f0 - own
+    assert registry.enriched.sum() > 0 and np.abs(share).max() > 1e-3 * P * (W / 4) ** 2
+    u = built.program.u0.copy()
+    model.begin_step()
+    residual = model.assemble(u, u, f0).residual
+    residual[model.dirichlet] = 0.0
+    assert np.abs(residual).max() <= 1e-11 * P * (W / 4) ** 2
+    without = residual + share
+    without[model.dirichlet] = 0.0
+    assert np.abs(without).max() > 1e-3 * P * (W / 4) ** 2

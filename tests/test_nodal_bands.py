@@ -173,3 +173,32 @@ def test_a_grown_band_on_unstructured_triangles(tmp_path):
     assert c_left < 1.0
     force = read_csv(tmp_path / "out" / "history.csv")["F_axial"]
     assert force[-1] == pytest.approx(reference, rel=0.02)
+
+
+def test_a_given_crack_under_in_situ_stress_slides_to_the_same_closed_form(tmp_path):
+    """The given crack's case with its confinement given as an in-situ stress instead of a stage
+    (sigma0: the confinement stage's plane-strain state, held by its tractions on the whole boundary;
+    the top shortened from u = 0): the crack starts from sigma0 . n, and after full softening the
+    top carries p w within 0.5 % (its reaction plus the in-situ traction it keeps), as the confined
+    case (the in-situ share of the enriched unknowns where the crack crosses the loaded edges
+    included, from t = 0 on)."""
+    nu = 0.3
+    case = crack_case(block(8, 16))
+    assert case["materials"][0]["nu"] == nu
+    loading = case.pop("loading")
+    s_yy = nu / (1 - nu) * -P
+    case["initial"] = {"stress": [{"stress": [-P, s_yy, nu * (-P + s_yy), 0.0]}]}
+    case["stages"] = [{"name": "axial", "control": "path", "path_increment": loading["path_increment"],
+                       "max_steps": loading["max_steps"], "steps": loading["axial_steps"],
+                       "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
+                                        "top": {"y": -loading["axial_displacement"]}}}]
+    s = run_case(parse_case(case), tmp_path / "o")
+    h = read_csv(tmp_path / "o" / "history.csv")
+    assert s.result.completed, s.result.message
+    force = -np.asarray(h["R_top_y"]) - s_yy * W  # the top's reaction and the in-situ traction on it
+    e_yy = -2e-3 * np.asarray(h["load_factor"][:3]) / 0.08  # the first steps: elastic, the crack closed
+    # (the crack's penalty adds its small compliance: 0.07 % here; from zero, the start would be off by s_yy w)
+    np.testing.assert_allclose(force[:3], -s_yy * W - 1.5e7 / (1 - nu**2) * e_yy * W, rtol=2e-3)
+    assert force.max() > 3 * P * W
+    assert force[-1] == pytest.approx(P * W, rel=5e-3)
+    assert abs(h["energy_error"][-1]) <= 1e-6 * h["W_external"][-1]

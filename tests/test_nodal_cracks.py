@@ -261,8 +261,8 @@ def test_bad_nodal_sections_are_refused(change, expected):
 
 def test_nodal_cracks_refuse_what_they_do_not_do_yet(tmp_path):
     case = crack_case(block(6, 12))
-    case["initial"] = {"stress": [{"stress": [-P, -P, -P, 0.0]}]}
-    with pytest.raises(CaseError, match=r"kinematics = 'nodal': its enrichment takes no body force or in-situ"):
+    case["initial"] = {"stress": [{"stress": [-P, -P, -P, 0.0]}], "gravity": [0.0, -9.81]}
+    with pytest.raises(CaseError, match=r"kinematics = 'nodal': its enrichment takes no body force yet"):
         run_case(parse_case(case), tmp_path / "o")
 
 
@@ -276,3 +276,43 @@ def test_nodal_cracks_are_refused_on_several_ranks():
     mesh = make_mesh(case, "<case>")
     with pytest.raises(CaseError, match=r"kinematics = 'nodal': it runs on one process"):
         make_bulk_groups(case, mesh, "<case>", owned=np.ones(mesh.cells.shape[0], dtype=bool))
+
+
+def test_in_situ_stress_is_an_equilibrium_with_a_crack_across(tmp_path):
+    """An anisotropic in-situ stress (with shear) held by its tractions on the whole outer boundary,
+    and a crack given from side to side: the crack is cut after the stress is set, so its points start
+    from sigma0 . n and its sides carry sigma0; u = 0 and q = 0 is then the exact solution, the
+    enriched unknowns' share of the in-situ tractions included (the crack crosses the loaded left and
+    right edges). The residual vanishes to round-off; without that share it would not."""
+    case = crack_case(block(6, 12))
+    del case["loading"]
+    sigma0 = [-P, -1.5 * P, -1.2 * P, 0.15 * P]  # xx, yy, zz, xy [Pa]
+    case["initial"] = {"stress": [{"stress": sigma0}]}
+    case["stages"] = [{"name": "hold", "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0}}}]
+    built = build(parse_case(case))
+    model, stage = built.model, built.program.stages[0]
+    registry = built.embeddeds[0].registry
+    own = stage.f_ext_end.copy()
+    _EnrichedLoads(model, built.program.stages)()
+    q = registry.offset + np.arange(registry.size)
+    share = stage.f_ext_end[q] - own[q]
+    assert registry.enriched.sum() > 0 and np.abs(share).max() > 1e-3 * P * W / 6  # the crack meets the loaded edges
+    g = built.embeddeds[0]
+    n = g.cc_frame[0, 1]
+    sig = np.array([[sigma0[0], sigma0[3]], [sigma0[3], sigma0[1]]])
+    traction = sig @ n  # the crack's points start from it
+    for slot in range(g.cc_cell.size):
+        np.testing.assert_allclose(g.cc_sigma[slot, :np.count_nonzero(g.cc_w[slot])][:, [0, 1, 3]],
+                                   np.broadcast_to(np.array(sigma0)[[0, 1, 3]],
+                                                   (np.count_nonzero(g.cc_w[slot]), 3)), rtol=1e-12)
+    t_frame = g.cc_frame[:, 0]
+    starts = g.cc_cp[:, 0, EP.CP_T0:EP.CP_T0 + 2]
+    np.testing.assert_allclose(starts[:, 0], t_frame @ traction, rtol=1e-9)
+    np.testing.assert_allclose(starts[:, 1], n @ traction, rtol=1e-9)
+    u = built.program.u0.copy()
+    model.begin_step()
+    residual = model.assemble(u, u, stage.f_ext_end).residual
+    residual[model.dirichlet] = 0.0
+    assert np.abs(residual).max() <= 1e-12 * P * W / 6
+    residual_without = residual + (stage.f_ext_end - own)
+    assert np.abs(residual_without).max() > 1e-3 * P * W / 6

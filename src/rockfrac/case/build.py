@@ -15,6 +15,7 @@ import numpy as np
 from rockfrac.case.build_groups import (  # noqa: F401 (re-exported: the case -> objects helpers)
     AUGMENTATION_SAFETY,
     cohesive_groups,
+    cut_given_cracks,
     default_augmentation,
     drucker_prager_of,
     embedded_law,
@@ -184,6 +185,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         model = distribution.make_model(mesh, bulks + cohesives, part)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
+    cut_given_cracks(case, bulks, mesh, path)  # after the state at t = 0 (build_program's in-situ stress)
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
     return Built(case, mesh, model, program, thickness, bulks, cohesives, part)

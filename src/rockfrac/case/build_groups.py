@@ -118,10 +118,10 @@ def refuse_nodal(case: Case, mesh: Mesh, path: str, ranks: bool) -> None:
         why = "the plane-strain hexahedra of the paper's specimen are not cut (a 2D mesh or a general 3D body)"
     elif ranks:
         why = "it runs on one process (not on several MPI ranks yet)"
-    elif case.initial is not None:
-        why = "its enrichment takes no body force or in-situ stress yet: remove [initial]"
-    elif any(st.gravity is not None or st.in_situ for st in case.stage_sections):
-        why = "its enrichment takes no body force or in-situ stress yet: remove the stages' gravity and in_situ"
+    elif case.initial is not None and case.initial.gravity is not None:
+        why = "its enrichment takes no body force yet: remove [initial] gravity (an in-situ stress is taken)"
+    elif any(st.gravity is not None for st in case.stage_sections):
+        why = "its enrichment takes no body force yet: remove the stages' gravity (an in-situ stress is taken)"
     if why:
         raise CaseError(f"{path}: [embedded] kinematics = 'nodal': {why}")
 
@@ -186,12 +186,20 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim)
         for k, g in enumerate(nodal):
             g.attach(registry, first=k == 0)
-    if emb is not None and emb.cracks:
-        if general:
-            cut_initial_planes(emb, [g for g in groups if isinstance(g, EmbeddedDruckerPrager)], path)
-        else:
-            cut_initial_cracks(emb, embedded, path)
     return groups
+
+
+def cut_given_cracks(case: Case, groups: list, mesh: Mesh, path: str) -> None:
+    """Cut the cells of [[embedded.cracks]] (lines in 2D, planes in a general 3D body), once the
+    groups hold the state at t = 0 (an in-situ stress: the cracks start from its traction)."""
+    emb = case.embedded
+    if emb is None or not emb.cracks:
+        return
+    embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager)]
+    if mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen:  # a general 3D body (make_bulk_groups)
+        cut_initial_planes(emb, embedded, path)
+    else:
+        cut_initial_cracks(emb, [g for g in embedded if g.dim == 2], path)
 
 
 def cut_initial_planes(emb: EmbeddedSection, groups: list[EmbeddedDruckerPrager], path: str) -> None:

@@ -8,7 +8,7 @@ key in the message. The paper's short form [loading] is expanded into two or mor
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -202,6 +202,30 @@ def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.nd
         else:
             face_stress_traction(mesh.nodes, sides[on], field_, f, factor[on])
     return f
+
+
+def in_situ_tractions(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
+                      factor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The loaded boundary sides of :func:`in_situ_forces` and the traction sigma0 . n [Pa] on each,
+    sigma0 at the side's centre, times its factor: the share a nodal crack crossing a side takes
+    (rockfrac.elements.ede_enrichment.EnrichmentRegistry.surface_forces, uniform per side)."""
+    dim = mesh.dim
+    on = np.asarray(factor) != 0.0
+    sides, factor = sides[on], np.asarray(factor)[on]
+    t = np.zeros((sides.shape[0], dim))
+    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
+    normal = side_normals(mesh.nodes, sides)
+    centre = mesh.nodes[sides].mean(axis=1)
+    pairs = [(0, 3), (3, 1)] if dim == 2 else [(0, 3, 5), (3, 1, 4), (5, 4, 2)]  # Voigt rows of sigma
+    for k, g in enumerate(bulks):
+        field_ = initial.field(g.region)
+        rows = region_of == k
+        if field_ is None or not rows.any():
+            continue
+        sig = field_(centre[rows][:, :2] if dim == 2 else centre[rows])
+        for i, voigt in enumerate(pairs):
+            t[rows, i] = sum(sig[:, v] * normal[rows, j] for j, v in enumerate(voigt))
+    return sides, t * factor[:, None]
 
 
 def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model) -> None:
@@ -456,6 +480,10 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)
         if initial is not None:
             f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model)
+            if model.enrichment_version() is not None:  # nodal cracks: their share where they cross the boundary
+                loaded, t_situ = in_situ_tractions(mesh, bulks, initial, outer, in_situ_factor)
+                surface_edges.append(loaded)
+                surface_tractions.append(t_situ)
         f_full = np.zeros(model.n_dofs)
         f_full[: f_end.shape[0]] = f_end
         dofs = np.array(sorted(presc), dtype=np.int64)
@@ -473,6 +501,9 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
     u0 = model.initial_unknowns()
     f0_full = np.zeros(model.n_dofs)
     f0_full[: np.size(f0)] = f0
+    if initial is not None and stages and model.enrichment_version() is not None:  # nodal cracks' share at t = 0
+        edges0, tractions0 = in_situ_tractions(mesh, bulks, initial, outer, np.ones(outer.shape[0]))
+        stages[0] = replace(stages[0], start_edges=edges0, start_tractions=tractions0)
     if initial is not None or np.any(g0):
         _check_equilibrium(model, stages[0], u0, f0_full, initial, path)
         notes.append("initial state: in equilibrium with the in-situ tractions"

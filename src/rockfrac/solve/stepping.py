@@ -46,6 +46,9 @@ class Stage:
     # what a crack with enriched unknowns needs to split a boundary's load between its two sides
     surface_edges: np.ndarray | None = None
     surface_tractions: np.ndarray | None = None
+    # the same at t = 0, on the first stage (the in-situ tractions of the forces f0 it starts from)
+    start_edges: np.ndarray | None = None
+    start_tractions: np.ndarray | None = None
 
     def end_values(self, dofs: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Prescribed values at the end of the stage on ``dofs`` (the model's Dirichlet set in this
@@ -159,7 +162,7 @@ def run_stages(
     f_ref = f_start
     previous = np.full(model.n_dofs, np.nan)  # prescribed values at the end of the last stage (nan: free)
     count = 0 if start is None else start.count
-    refresh = _EnrichedLoads(model, stages)
+    refresh = _EnrichedLoads(model, stages, f_start)
     for index, stage in enumerate(stages):
         if start is not None and index < start.stage:
             previous = _end_map(model, stage, previous)
@@ -307,14 +310,18 @@ class _EnrichedLoads:
     """Keeps the stages' external forces on a model's enriched unknowns (a crack's, see
     rockfrac.elements.ede_enrichment) up to date: called after every change, it adds to each stage's
     own forces the share of its boundary tractions that the enrichment takes now (in place, so
-    that a stage's start forces, the previous stage's end ones, follow). Returns True if they changed."""
+    that a stage's start forces, the previous stage's end ones, follow), and to the forces f0 the
+    run starts from the share of the first stage's ``start_*`` tractions. Returns True if they changed."""
 
-    def __init__(self, model: Model, stages: list[Stage]):
+    def __init__(self, model: Model, stages: list[Stage], f0: np.ndarray | None = None):
         self.model = model
         self.stages = stages
-        self.active = model.enrichment_version() is not None and any(
-            s.surface_edges is not None and s.surface_edges.size for s in stages)
+        first = stages[0] if stages else None
+        self.f0 = f0 if first is not None and first.start_edges is not None and first.start_edges.size else None
+        self.active = model.enrichment_version() is not None and (self.f0 is not None or any(
+            s.surface_edges is not None and s.surface_edges.size for s in stages))
         self.own = [s.f_ext_end.copy() for s in stages] if self.active else []
+        self.own0 = self.f0.copy() if self.active and self.f0 is not None else None
         self.seen: tuple[int, ...] | None = None
 
     def __call__(self) -> bool:
@@ -328,6 +335,10 @@ class _EnrichedLoads:
             stage.f_ext_end[:] = own
             if stage.surface_edges is not None and stage.surface_tractions is not None and stage.surface_edges.size:
                 stage.f_ext_end[:] += self.model.enriched_surface_forces(stage.surface_edges, stage.surface_tractions)
+        first = self.stages[0]
+        if (self.f0 is not None and self.own0 is not None and first.start_edges is not None
+                and first.start_tractions is not None):
+            self.f0[:] = self.own0 + self.model.enriched_surface_forces(first.start_edges, first.start_tractions)
         return True
 
 

@@ -350,7 +350,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
                                      enrichment=any(isinstance(g, HeldEnrichment) for g in built.model.groups))
             else:
-                solver = distribution.make_solver(sol.linear.value)
+                solver = distribution.make_solver(sol.linear.value, built.model.n_dofs, built.mesh.dim)
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
             result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                                 start=start, should_stop=stop, u0=built.program.u0, f0=built.program.f0)

@@ -5,6 +5,8 @@ a CaseError is written there as ``error`` (raised on every rank, so none waits f
 Tasks:
 - ``history``: run the case; per converged step its load factor, Newton iterations, control and
   the displacements and internal forces gathered whole.
+- ``history_auto_amg``: ``history`` with 'auto' taking its large-3D choice at any size (GMRES + GAMG
+  handing over to MUMPS's LU), and the solver's name.
 - ``system``: assemble at a displacement field given in the case file's ``"u"``; the global
   tangent (Dirichlet rows of the first stage applied) in rockfrac's numbering, gathered from every
   rank's owned rows, and the residual; the ownership of cells and interface cells, and the ghost
@@ -35,9 +37,11 @@ def history(built, comm) -> dict:
         rows["u"].append(lay.gather(info.u))
         rows["f_int"].append(lay.gather(info.f_int))
 
-    result = run_distributed(built, on_step)
+    log: list[str] = []
+    result = run_distributed(built, on_step, log.append)
     out = {k: np.array(v) for k, v in rows.items()}
     out["message"] = np.array(result.message)
+    out["solver_line"] = np.array(log[0] if log else "")
     return out
 
 
@@ -78,9 +82,13 @@ def main() -> None:
     comm = MPI.COMM_WORLD
     data = json.loads(open(case_file).read())
     u = np.array(data.pop("u")) if "u" in data else None
+    if task == "history_auto_amg":
+        import rockfrac.parallel.solvers as solvers
+
+        solvers.AMG_FROM_3D = 0
     try:
         built = build_distributed(parse_case(data, case_file), comm, case_file)
-        result = history(built, comm) if task == "history" else system(built, comm, u)
+        result = history(built, comm) if task.startswith("history") else system(built, comm, u)
     except CaseError as err:
         result = {"error": np.array(str(err))}
     result["ranks"] = np.array(comm.Get_size())

@@ -341,6 +341,24 @@ def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):
     assert "not in equilibrium" in str(par["error"]) and "gravity" in str(par["error"])
 
 
+def test_auto_on_ranks_takes_gamg_for_large_3d_models_and_hands_over_to_mumps(tmp_path):
+    """'auto' on several ranks: MUMPS's LU, except on a 3D model of at least AMG_FROM_3D dofs, where
+    it is GMRES + GAMG handing over to MUMPS at its first failure (the serial rule). The jointed
+    cylinder (tet4, EP joint) on 2 ranks with that choice at its size gives the serial history."""
+    from rockfrac.parallel.solvers import KrylovGAMG, MumpsLU, distributed_solver
+    from rockfrac.solve.iterative import Handover
+    from rockfrac.solve.linear import AMG_FROM_3D
+
+    big = distributed_solver("auto", AMG_FROM_3D, 3)
+    assert isinstance(big, Handover) and isinstance(big.first, KrylovGAMG) and isinstance(big.then, MumpsLU)
+    assert isinstance(distributed_solver("auto", AMG_FROM_3D - 1, 3), MumpsLU)
+    assert isinstance(distributed_solver("auto", 100 * AMG_FROM_3D, 2), MumpsLU)
+    case = joint_case()
+    par = mpirun(2, "history_auto_amg", case, tmp_path)
+    assert "petsc-gamg, then petsc if it fails" in str(par["solver_line"])
+    assert_same_history(par, serial_history(case))
+
+
 @pytest.mark.parametrize("linear", ["petsc-gamg", "petsc-hypre"])
 def test_rigid_plastic_surfaces_with_an_amg_preconditioner_take_the_schur_field_split(tmp_path, linear):
     """RP multipliers make saddle points: the Krylov solvers precondition by PETSc's Schur field

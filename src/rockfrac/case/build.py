@@ -48,7 +48,7 @@ class Distribution:
     split: Callable[[Mesh], Partition]
     rank: int
     make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
-    make_solver: Callable[[str], Any]  # [solver] linear -> the distributed linear solver
+    make_solver: Callable[[str, int, int], Any]  # [solver] linear, dofs, dimension -> the distributed solver
     exchange: Any = None  # the ranks' allgather, before the model exists (rockfrac.elements.ede_paths.Exchange)
 
 

@@ -28,7 +28,7 @@ class SolverSection(_Section):
                                      "'superlu' (SciPy), 'pardiso' (needs pypardiso), 'mumps' (needs "
                                      "python-mumps), 'gmres-amg' (iterative, needs pyamg), or with petsc4py 'petsc' (MUMPS's LU), "
                                      "'petsc-gamg' or 'petsc-hypre' (GMRES + AMG); on several MPI ranks 'auto' is "
-                                     "'petsc'")
+                                     "'petsc', or 'petsc-gamg' handing over to it on a 3D model of 1e5 dofs or more")
 
     @model_validator(mode="after")
     def _solver_installed(self) -> SolverSection:

@@ -57,9 +57,9 @@ def build_distributed(case: Case | str | Path, comm, path_label: str | None = No
 def run_distributed(built: Built, on_step: Callable[[StepInfo], None],
                     log: Callable[[str], None] = lambda s: None) -> RunResult:
     """Run the stages of a distributed build with the case's [solver] options and its linear solver
-    ('auto': MUMPS's LU)."""
+    ('auto': MUMPS's LU, or GMRES + GAMG on a large 3D model)."""
     newton, stepping = engine_options(built)
-    solver = distributed_solver(built.case.solver.linear.value)
+    solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs, built.mesh.dim)
     log(f"linear solver: {solver.name} on {built.model.comm.Get_size()} ranks")  # type: ignore[attr-defined]
     return run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                       u0=built.program.u0, f0=built.program.f0)

@@ -9,6 +9,8 @@ import numpy as np
 
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
+from rockfrac.solve.iterative import Handover
+from rockfrac.solve.linear import AMG_FROM_3D
 from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp, saddle_options, split_fields
 
 
@@ -97,10 +99,15 @@ class KrylovHypre(DistributedSolver):
 DISTRIBUTED_SOLVERS = {s.name: s for s in (MumpsLU, KrylovGAMG, KrylovHypre)}
 
 
-def distributed_solver(name: str) -> DistributedSolver:
-    """The distributed solver for a [solver] linear name: 'auto' and 'petsc' are MUMPS's LU."""
-    key = "petsc" if name == "auto" else name
-    if key not in DISTRIBUTED_SOLVERS:
+def distributed_solver(name: str, n_dofs: int = 0, dim: int = 2) -> DistributedSolver | Handover:
+    """The distributed solver for a [solver] linear name: 'petsc' is MUMPS's LU; 'auto' is too, except
+    on a 3D model of at least AMG_FROM_3D dofs (RP multipliers included), where it is GMRES + GAMG
+    handing over to MUMPS's LU at its first failure (the serial rule, rockfrac.solve.linear)."""
+    if name == "auto":
+        if dim == 3 and n_dofs >= AMG_FROM_3D:
+            return Handover(KrylovGAMG(), MumpsLU())
+        return MumpsLU()
+    if name not in DISTRIBUTED_SOLVERS:
         raise ValueError(f"[solver] linear = {name!r} is a serial solver; on several MPI ranks: "
                          f"{', '.join(['auto'] + sorted(DISTRIBUTED_SOLVERS))}")
-    return DISTRIBUTED_SOLVERS[key]()
+    return DISTRIBUTED_SOLVERS[name]()

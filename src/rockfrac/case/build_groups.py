@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from rockfrac.case.build_mesh import mean_cell_size
-from rockfrac.case.build_program import require
+from rockfrac.case.messages import require
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind

@@ -6,7 +6,7 @@ from typing import Literal
 
 import numpy as np
 
-from rockfrac.case.build_program import require
+from rockfrac.case.messages import require
 from rockfrac.case.cohesive_section import Placement
 from rockfrac.case.mesh_section import ElementType, MeshKind
 from rockfrac.case.schema import Case

@@ -13,24 +13,27 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from rockfrac.case.loading import Control
-from rockfrac.case.program import InitialStressSection, StageSection, StopSection
+from rockfrac.case.initial_state import (
+    InitialStress,
+    gravity_forces,
+    in_situ_forces,
+    in_situ_tractions,
+    set_initial_stress,
+)
+from rockfrac.case.messages import require
+from rockfrac.case.program import StageSection, StopSection
 from rockfrac.case.schema import Case
 from rockfrac.elements.base import ElementGroup
 from rockfrac.errors import CaseError
 from rockfrac.fem.loads import (
-    StressField,
-    body_force,
-    edge_normals,
     edge_pressure,
-    edge_stress_traction,
     edge_traction,
     face_pressure,
-    face_stress_traction,
     face_traction,
-    nodal_volumes,
+    side_normals,
 )
 from rockfrac.mesh.mesh import Mesh
-from rockfrac.mesh.topology import cell_sides, match, on_boundary, outer_boundary
+from rockfrac.mesh.topology import match, on_boundary, outer_boundary
 from rockfrac.model import Model
 from rockfrac.output.history import Monitor
 from rockfrac.solve.newton import Measure
@@ -53,23 +56,6 @@ class Program:
     sections: list[StageSection]
     aliases: bool = False  # the paper's u_axial, F_axial columns (the [loading] form)
     notes: list[str] = field(default_factory=list)  # what run.log should say about the set-up
-
-
-def require(names, available, what: str, key: str, path: str) -> None:
-    """CaseError naming the key if a name is not among ``available``."""
-    missing = [n for n in names if n not in available]
-    if missing:
-        raise CaseError(f"{path}: {key}: {what} {', '.join(repr(n) for n in missing)} not in the mesh; "
-                        f"its {what}s: {', '.join(sorted(available)) or '(none)'}")
-
-
-def side_normals(nodes: np.ndarray, sides: np.ndarray) -> np.ndarray:
-    """Outward unit normals (k, dim) of boundary edges (k, 2) or faces (k, 3|4) (fem.loads' orientations)."""
-    if sides.shape[1] == 2:
-        return edge_normals(nodes, sides)[0]
-    x = nodes[sides]
-    n = np.cross(x[:, 1] - x[:, 0], x[:, -1 if sides.shape[1] == 4 else 2] - x[:, 0])
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def expand_loading(case: Case, mesh: Mesh, path: str) -> list[tuple[StageSection, str]]:
@@ -124,149 +110,6 @@ def _vector(values, dim: int, key: str, path: str) -> np.ndarray:
     if v.shape != (dim,):
         raise CaseError(f"{path}: {key}: {v.size} components; this {dim}D mesh needs {dim}")
     return v
-
-
-class InitialStress:
-    """The in-situ stress of the case: one linear field per set of regions (sigma0 = stress + (e -
-    datum) gradient, e the elevation: y in 2D, z in 3D)."""
-
-    def __init__(self, specs: list[InitialStressSection], regions: list[str], dim: int, path: str):
-        self.dim = dim
-        self.of_region: dict[str, tuple[np.ndarray, np.ndarray, float]] = {}
-        for k, spec in enumerate(specs):
-            key = f"[initial] stress[{k + 1}]"
-            names = spec.regions if spec.regions is not None else regions
-            require(names, regions, "region", f"{key} regions", path)
-            s = np.zeros(6)
-            g = np.zeros(6)
-            n = len(spec.stress)
-            if dim == 3 and n != 6:
-                raise CaseError(f"{path}: {key} stress: a 3D mesh needs all six components (sxx, syy, szz, sxy, syz, sxz)")
-            s[[0, 1, 2, 3, 4, 5][:n]] = spec.stress
-            if spec.gradient is not None:
-                g[:n] = spec.gradient
-            for r in names:
-                if r in self.of_region:
-                    raise CaseError(f"{path}: {key} regions: region {r!r} already has an in-situ stress")
-                self.of_region[r] = (s, g, spec.datum)
-
-    def field(self, region: str) -> StressField | None:
-        """The stress field of a region (None: stress-free)."""
-        if region not in self.of_region:
-            return None
-        s, g, datum = self.of_region[region]
-        axis = 1 if self.dim == 2 else 2
-
-        def stress(x: np.ndarray) -> np.ndarray:
-            return s[None, :] + (x[:, axis] - datum)[:, None] * g[None, :]
-
-        return stress
-
-    def scale(self) -> float:
-        """The largest stress magnitude at the datum [Pa] (for tolerances)."""
-        return max((float(np.abs(s).max()) for s, _, _ in self.of_region.values()), default=0.0)
-
-
-def _cell_regions(n_cells: int, bulks: list) -> np.ndarray:
-    out = np.full(n_cells, -1)
-    for k, g in enumerate(bulks):
-        out[g.cell_ids] = k
-    return out
-
-
-def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
-    """The cell each boundary side belongs to."""
-    all_sides = cell_sides(mesh.cells, mesh.dim)
-    row, _ = match(all_sides, sides)
-    per_cell = all_sides.shape[0] // mesh.cells.shape[0]
-    return row // per_cell
-
-
-def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
-                   factor: np.ndarray, model: Model | None = None) -> np.ndarray:
-    """Nodal forces of sigma0 . n on boundary sides (each side with the field of its cell's region),
-    times a factor per side (on a distributed ``model``: the sides of every rank's cells)."""
-    if model is not None and model.distributed:
-        return model.reduce_sum(in_situ_forces(mesh, bulks, initial, sides, factor))
-    f = np.zeros(mesh.dim * mesh.n_nodes)
-    if sides.size == 0:
-        return f
-    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
-    for k, g in enumerate(bulks):
-        field_ = initial.field(g.region)
-        on = region_of == k
-        if field_ is None or not on.any():
-            continue
-        if mesh.dim == 2:
-            edge_stress_traction(mesh.nodes, sides[on], field_, f, factor[on])
-        else:
-            face_stress_traction(mesh.nodes, sides[on], field_, f, factor[on])
-    return f
-
-
-def in_situ_tractions(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
-                      factor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The loaded boundary sides of :func:`in_situ_forces` and the traction sigma0 . n [Pa] on each,
-    sigma0 at the side's centre, times its factor: the share a nodal crack crossing a side takes
-    (rockfrac.elements.ede_enrichment.EnrichmentRegistry.surface_forces, uniform per side)."""
-    dim = mesh.dim
-    on = np.asarray(factor) != 0.0
-    sides, factor = sides[on], np.asarray(factor)[on]
-    t = np.zeros((sides.shape[0], dim))
-    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
-    normal = side_normals(mesh.nodes, sides)
-    centre = mesh.nodes[sides].mean(axis=1)
-    pairs = [(0, 3), (3, 1)] if dim == 2 else [(0, 3, 5), (3, 1, 4), (5, 4, 2)]  # Voigt rows of sigma
-    for k, g in enumerate(bulks):
-        field_ = initial.field(g.region)
-        rows = region_of == k
-        if field_ is None or not rows.any():
-            continue
-        sig = field_(centre[rows][:, :2] if dim == 2 else centre[rows])
-        for i, voigt in enumerate(pairs):
-            t[rows, i] = sum(sig[:, v] * normal[rows, j] for j, v in enumerate(voigt))
-    return sides, t * factor[:, None]
-
-
-def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model) -> None:
-    """Put the in-situ stress into the groups: bulk regions their own field, cohesive sets the field
-    of the region on their minus side (the last bulk group whose cells hold their minus nodes; on
-    several MPI ranks, over the cells and points of every rank)."""
-    node_group = np.full(mesh.n_nodes, -1)
-    for k, g in enumerate(bulks):
-        field_ = initial.field(g.region)
-        if field_ is not None:
-            g.set_initial_stress(field_)
-        node_group[g.cells.ravel()] = k
-    if model.distributed:
-        node_group = model.reduce_max(node_group)
-    for c in cohesives:
-        groups = set().union(*model.allgather(set(node_group[c.points.minus].tolist())))
-        fields = {bulks[k].region: initial.field(bulks[k].region) for k in groups if k >= 0}
-        specs = {initial.of_region[r][0].tobytes() + initial.of_region[r][1].tobytes()
-                 for r, fl in fields.items() if fl is not None}
-        if len(specs) > 1:
-            raise CaseError(f"[initial] stress: the cohesive set {c.name!r} borders regions with different in-situ "
-                            f"stresses ({', '.join(sorted(fields))}); give them one field")
-        live = [fl for fl in fields.values() if fl is not None]
-        if live:
-            c.set_initial_stress(live[0])
-
-
-def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, g: np.ndarray, key: str,
-                   path: str, model: Model | None = None) -> np.ndarray:
-    """Nodal forces of gravity g on every region (density x g), CaseError if a region has no density
-    (on a distributed ``model``: the groups' cells of every rank)."""
-    f = np.zeros(mesh.dim * mesh.n_nodes)
-    if not np.any(g):
-        return f
-    for b in bulks:
-        rho = densities.get(b.region)
-        if rho is None:
-            raise CaseError(f"{path}: {key}: region {b.region!r} has no density (give density [kg/m^3] in its "
-                            "[bulk] or [[materials]] section)")
-        body_force(b.cells, nodal_volumes(mesh.nodes, b.cells, b.ref, b.wdet), rho, g, f)
-    return model.reduce_sum(f) if model is not None and model.distributed else f
 
 
 def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, model: Model, monitors: list[Monitor],

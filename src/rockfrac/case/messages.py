@@ -14,6 +14,8 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from rockfrac.errors import CaseError
+
 SECTIONS = ("mesh", "bulk", "materials", "cohesive", "embedded", "loading", "solver", "output", "law", "material",
             "stress", "stages", "boundary", "initial_stress", "monitors")
 
@@ -128,3 +130,11 @@ def format_errors(path: str, err: ValidationError, root: type[BaseModel],
             continue
         lines.append(f"{path}: {location(where, arrays)}: {' or '.join(msgs)}{got.get(where, '')}")
     return "\n".join(lines)
+
+
+def require(names, available, what: str, key: str, path: str) -> None:
+    """CaseError naming the key if a name is not among ``available``."""
+    missing = [n for n in names if n not in available]
+    if missing:
+        raise CaseError(f"{path}: {key}: {what} {', '.join(repr(n) for n in missing)} not in the mesh; "
+                        f"its {what}s: {', '.join(sorted(available)) or '(none)'}")

@@ -168,3 +168,12 @@ def segment_pair_forces(x0: np.ndarray, x1: np.ndarray, stress: StressField) -> 
         forces[:, 0] += (0.5 * length * (1.0 - s))[:, None] * t
         forces[:, 1] += (0.5 * length * s)[:, None] * t
     return forces
+
+
+def side_normals(nodes: np.ndarray, sides: np.ndarray) -> np.ndarray:
+    """Outward unit normals (k, dim) of boundary edges (k, 2) or faces (k, 3|4) (fem.loads' orientations)."""
+    if sides.shape[1] == 2:
+        return edge_normals(nodes, sides)[0]
+    x = nodes[sides]
+    n = np.cross(x[:, 1] - x[:, 0], x[:, -1 if sides.shape[1] == 4 else 2] - x[:, 0])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)

@@ -46,19 +46,25 @@ def _side_point(g, factor, n_nodes, bt):
             bt[2, c + 1] = f * gx
 
 
+#: the Voigt rows (xx, yy, zz, xy, yz, xz) a side point's strain has: plane strain's, a 3D cell's
+PLANE_ROWS = np.array([0, 1, 3])
+SOLID_ROWS = np.arange(6)
+
+
 @inner
-def _cut_cell(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, k, mu, ce,
-              law, kt, kn, cstate_new, csigma, ccp_new, fe, ke):
-    """One cut cell (module doc): its sides' Drucker-Prager points and its crack points. Returns a status."""
+def _side_points(ue, enr, cw, cside, cgrads, chnode, cstate, dp_p, k, mu, ce, cstate_new, csigma, fe, ke, rows,
+                 dim):
+    """fe, ke (zeroed here) of a cut cell's side points: each a Drucker-Prager point on [B, B_q] (the
+    rows of its strain: PLANE_ROWS in 2D, SOLID_ROWS in 3D). Returns a status."""
     n_nodes = enr.shape[0]
-    nd = 4 * n_nodes
-    bt = np.empty((3, nd))
+    nr = rows.shape[0]
+    nd = 2 * dim * n_nodes
+    bt = np.empty((nr, nd))
     eps6 = np.zeros(6)
     c6 = np.empty((6, 6))
     work = np.empty((5, 6))
     factor = np.empty(n_nodes)
-    cb = np.empty((3, nd))
-    idx = np.array([0, 1, 3])
+    cb = np.empty((nr, nd))
     fe[:] = 0.0
     ke[:, :] = 0.0
     status = ST_OK
@@ -68,32 +74,66 @@ def _cut_cell(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, c
             continue
         for a in range(n_nodes):
             factor[a] = enr[a] * (cside[p] - chnode[a])
-        _side_point(cgrads[p], factor, n_nodes, bt)
-        for i in range(3):
+        if dim == 2:
+            _side_point(cgrads[p], factor, n_nodes, bt)
+        else:
+            _side_point_3d(cgrads[p], factor, n_nodes, bt)
+        for i in range(nr):
             acc = 0.0
             for j in range(nd):
                 acc += bt[i, j] * ue[j]
-            eps6[idx[i]] = acc
+            eps6[rows[i]] = acc
         st = dp.return_map_into(eps6, cstate[p], dp_p, k, mu, ce, work, csigma[p], c6, cstate_new[p])
         if st < 0:
             status = ST_DP_FAIL
             continue
-        for i in range(3):
+        for i in range(nr):
             for j in range(nd):
                 acc = 0.0
-                for m in range(3):
-                    acc += c6[idx[i], idx[m]] * bt[m, j]
+                for m in range(nr):
+                    acc += c6[rows[i], rows[m]] * bt[m, j]
                 cb[i, j] = acc
         for a in range(nd):
             fa = 0.0
-            for i in range(3):
-                fa += bt[i, a] * csigma[p, idx[i]]
+            for i in range(nr):
+                fa += bt[i, a] * csigma[p, rows[i]]
             fe[a] += w * fa
             for b in range(nd):
                 acc = 0.0
-                for i in range(3):
+                for i in range(nr):
                     acc += bt[i, a] * cb[i, b]
                 ke[a, b] += w * acc
+    return status
+
+
+@inner
+def _crack_point(wk, enr, shape, tg, dg, q0, fe, ke):
+    """Add a crack point's traction tg (dim,) [Pa] and tangent dg (dim, dim) [Pa/m], global frame, of
+    weight wk [m] to the q rows (from q0) of the enriched nodes (shape values N_a (n_nodes,))."""
+    dim = tg.shape[0]
+    n_nodes = enr.shape[0]
+    for a in range(n_nodes):
+        sa = wk * enr[a] * shape[a]
+        if sa == 0.0:
+            continue
+        for i in range(dim):
+            fe[q0 + dim * a + i] += sa * tg[i]
+        for b in range(n_nodes):
+            sab = sa * enr[b] * shape[b]
+            if sab == 0.0:
+                continue
+            for i in range(dim):
+                for j in range(dim):
+                    ke[q0 + dim * a + i, q0 + dim * b + j] += sab * dg[i, j]
+
+
+@inner
+def _cut_cell(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, k, mu, ce,
+              law, kt, kn, cstate_new, csigma, ccp_new, fe, ke):
+    """One cut cell (module doc): its sides' Drucker-Prager points and its crack points. Returns a status."""
+    n_nodes = enr.shape[0]
+    status = _side_points(ue, enr, cw, cside, cgrads, chnode, cstate, dp_p, k, mu, ce, cstate_new, csigma, fe, ke,
+                          PLANE_ROWS, 2)
     tr = np.empty(2)
     dloc = np.empty((2, 2))
     dg = np.empty((2, 2))
@@ -115,20 +155,7 @@ def _cut_cell(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, c
             for j in range(2):
                 dg[i, j] = (cframe[0, i] * (dloc[0, 0] * cframe[0, j] + dloc[0, 1] * cframe[1, j])
                             + cframe[1, i] * (dloc[1, 0] * cframe[0, j] + dloc[1, 1] * cframe[1, j]))
-        wk = cwk[kk]
-        for a in range(n_nodes):
-            sa = wk * enr[a] * cshape[kk, a]
-            if sa == 0.0:
-                continue
-            for i in range(2):
-                fe[q0 + 2 * a + i] += sa * tg[i]
-            for b in range(n_nodes):
-                sab = sa * enr[b] * cshape[kk, b]
-                if sab == 0.0:
-                    continue
-                for i in range(2):
-                    for j in range(2):
-                        ke[q0 + 2 * a + i, q0 + 2 * b + j] += sab * dg[i, j]
+        _crack_point(cwk[kk], enr, cshape[kk], tg, dg, q0, fe, ke)
     return status
 
 
@@ -203,48 +230,8 @@ def _cut_cell_3d(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe
     """One cut 3D cell: its sides' Drucker-Prager points and its crack points (the 3D law,
     rockfrac.laws.embedded_penalty.crack_return_3d, in the frame (t1, t2, n) of cframe's rows)."""
     n_nodes = enr.shape[0]
-    nd = 6 * n_nodes
-    bt = np.empty((6, nd))
-    eps6 = np.zeros(6)
-    c6 = np.empty((6, 6))
-    work = np.empty((5, 6))
-    factor = np.empty(n_nodes)
-    cb = np.empty((6, nd))
-    fe[:] = 0.0
-    ke[:, :] = 0.0
-    status = ST_OK
-    for p in range(cw.shape[0]):
-        w = cw[p]
-        if w == 0.0:
-            continue
-        for a in range(n_nodes):
-            factor[a] = enr[a] * (cside[p] - chnode[a])
-        _side_point_3d(cgrads[p], factor, n_nodes, bt)
-        for i in range(6):
-            acc = 0.0
-            for j in range(nd):
-                acc += bt[i, j] * ue[j]
-            eps6[i] = acc
-        st = dp.return_map_into(eps6, cstate[p], dp_p, k, mu, ce, work, csigma[p], c6, cstate_new[p])
-        if st < 0:
-            status = ST_DP_FAIL
-            continue
-        for i in range(6):
-            for j in range(nd):
-                acc = 0.0
-                for m in range(6):
-                    acc += c6[i, m] * bt[m, j]
-                cb[i, j] = acc
-        for a in range(nd):
-            fa = 0.0
-            for i in range(6):
-                fa += bt[i, a] * csigma[p, i]
-            fe[a] += w * fa
-            for b in range(nd):
-                acc = 0.0
-                for i in range(6):
-                    acc += bt[i, a] * cb[i, b]
-                ke[a, b] += w * acc
+    status = _side_points(ue, enr, cw, cside, cgrads, chnode, cstate, dp_p, k, mu, ce, cstate_new, csigma, fe, ke,
+                          SOLID_ROWS, 3)
     jl = np.empty(3)
     tr = np.empty(3)
     dloc = np.empty((3, 3))
@@ -274,19 +261,7 @@ def _cut_cell_3d(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe
                     for c in range(3):
                         acc += cframe[r, i] * dloc[r, c] * cframe[c, j]
                 dg[i, j] = acc
-        for a in range(n_nodes):
-            sa = wk * enr[a] * cshape[kk, a]
-            if sa == 0.0:
-                continue
-            for i in range(3):
-                fe[q0 + 3 * a + i] += sa * tg[i]
-            for b in range(n_nodes):
-                sab = sa * enr[b] * cshape[kk, b]
-                if sab == 0.0:
-                    continue
-                for i in range(3):
-                    for j in range(3):
-                        ke[q0 + 3 * a + i, q0 + 3 * b + j] += sab * dg[i, j]
+        _crack_point(wk, enr, cshape[kk], tg, dg, q0, fe, ke)
     return status
 
 

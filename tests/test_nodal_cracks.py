@@ -259,13 +259,6 @@ def test_bad_nodal_sections_are_refused(change, expected):
         parse_case(case)
 
 
-def test_nodal_cracks_refuse_what_they_do_not_do_yet(tmp_path):
-    case = crack_case(block(6, 12))
-    case["initial"] = {"stress": [{"stress": [-P, -P, -P, 0.0]}], "gravity": [0.0, -9.81]}
-    with pytest.raises(CaseError, match=r"kinematics = 'nodal': its enrichment takes no body force yet"):
-        run_case(parse_case(case), tmp_path / "o")
-
-
 def test_nodal_cracks_are_refused_on_several_ranks():
     """One MPI rank's groups (an ``owned`` mask) with nodal cracks: refused by name before any step."""
     from rockfrac.case.build import resolve

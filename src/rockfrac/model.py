@@ -155,10 +155,20 @@ class Model:
         return versions or None
 
     def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray) -> np.ndarray:
-        """The enriched unknowns' share (n_dofs,) of uniform tractions (m, dim) [Pa] on edges (m, 2)."""
+        """The enriched unknowns' share (n_dofs,) of tractions [Pa] on boundary sides (m, s) (edges in 2D,
+        faces in 3D), uniform (m, dim) or at the sides' nodes (m, s, dim)."""
         out = np.zeros(self.n_dofs)
         for g in self.groups:
             f = g.enriched_surface_forces(edges, tractions, self.n_dofs)
+            if f is not None:
+                out += f
+        return out
+
+    def enriched_body_forces(self, body: dict[str, np.ndarray]) -> np.ndarray:
+        """The enriched unknowns' share (n_dofs,) of body forces [N/m^3] per region (density x g)."""
+        out = np.zeros(self.n_dofs)
+        for g in self.groups:
+            f = g.enriched_body_forces(body, self.n_dofs)
             if f is not None:
                 out += f
         return out

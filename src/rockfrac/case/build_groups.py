@@ -118,10 +118,6 @@ def refuse_nodal(case: Case, mesh: Mesh, path: str, ranks: bool) -> None:
         why = "the plane-strain hexahedra of the paper's specimen are not cut (a 2D mesh or a general 3D body)"
     elif ranks:
         why = "it runs on one process (not on several MPI ranks yet)"
-    elif case.initial is not None and case.initial.gravity is not None:
-        why = "its enrichment takes no body force yet: remove [initial] gravity (an in-situ stress is taken)"
-    elif any(st.gravity is not None for st in case.stage_sections):
-        why = "its enrichment takes no body force yet: remove the stages' gravity (an in-situ stress is taken)"
     if why:
         raise CaseError(f"{path}: [embedded] kinematics = 'nodal': {why}")
 

@@ -313,13 +313,14 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
             (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
             if sides.size:
                 surface_edges.append(sides)
-                surface_tractions.append(-p * side_normals(mesh.nodes, sides))
+                surface_tractions.append(_at_nodes(-p * side_normals(mesh.nodes, sides), sides))
         for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
             (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
             if sides.size:
                 surface_edges.append(sides)
-                surface_tractions.append(np.broadcast_to(np.asarray(vec, dtype=float), (sides.shape[0], dim)))
+                surface_tractions.append(_at_nodes(np.broadcast_to(np.asarray(vec, dtype=float),
+                                                                   (sides.shape[0], dim)), sides))
         f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)
         if initial is not None:
             f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model)
@@ -338,15 +339,18 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
                                                                  key, path),
                             source=source, dirichlet=dofs,
                             surface_edges=np.vstack(surface_edges) if surface_edges else None,
-                            surface_tractions=np.vstack(surface_tractions) if surface_tractions else None))
+                            surface_tractions=np.vstack(surface_tractions) if surface_tractions else None,
+                            body_force=_body_forces(densities, gravity)))
         stops.append(st.stop)
         sections.append(st)
     u0 = model.initial_unknowns()
     f0_full = np.zeros(model.n_dofs)
     f0_full[: np.size(f0)] = f0
-    if initial is not None and stages and model.enrichment_version() is not None:  # nodal cracks' share at t = 0
-        edges0, tractions0 = in_situ_tractions(mesh, bulks, initial, outer, np.ones(outer.shape[0]))
-        stages[0] = replace(stages[0], start_edges=edges0, start_tractions=tractions0)
+    if stages and model.enrichment_version() is not None:  # nodal cracks' share at t = 0
+        if initial is not None:
+            edges0, tractions0 = in_situ_tractions(mesh, bulks, initial, outer, np.ones(outer.shape[0]))
+            stages[0] = replace(stages[0], start_edges=edges0, start_tractions=tractions0)
+        stages[0] = replace(stages[0], start_body_force=_body_forces(densities, g0))
     if initial is not None or np.any(g0):
         _check_equilibrium(model, stages[0], u0, f0_full, initial, path)
         notes.append("initial state: in equilibrium with the in-situ tractions"
@@ -357,6 +361,18 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
             if why:
                 raise CaseError(f"{path}: [initial] stress: {why}")
     return Program(stages, u0, f0_full, stops, sections, aliases=case.loading is not None, notes=notes)
+
+
+def _at_nodes(tractions: np.ndarray, sides: np.ndarray) -> np.ndarray:
+    """Uniform tractions per side (m, dim) as their values at the side's nodes (m, s, dim)."""
+    return np.repeat(tractions[:, None, :], sides.shape[1], axis=1)
+
+
+def _body_forces(densities: dict[str, float | None], g: np.ndarray) -> dict[str, np.ndarray] | None:
+    """Gravity's body force [N/m^3] per region with a density (None: no gravity)."""
+    if not np.any(g):
+        return None
+    return {r: rho * g for r, rho in densities.items() if rho is not None}
 
 
 def _check_equilibrium(model: Model, first: Stage, u0: np.ndarray, f0: np.ndarray, initial: InitialStress | None,

@@ -102,26 +102,27 @@ def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.nd
 
 def in_situ_tractions(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
                       factor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The loaded boundary sides of :func:`in_situ_forces` and the traction sigma0 . n [Pa] on each,
-    sigma0 at the side's centre, times its factor: the share a nodal crack crossing a side takes
-    (rockfrac.elements.ede_enrichment.EnrichmentRegistry.surface_forces, uniform per side)."""
+    """The loaded boundary sides of :func:`in_situ_forces` and the traction sigma0 . n [Pa] at each of
+    their nodes (m, s, dim), times the side's factor: the share a nodal crack crossing a side takes
+    (rockfrac.elements.ede_enrichment.EnrichmentRegistry.surface_forces, interpolated along the side:
+    exact for the linear fields of [initial])."""
     dim = mesh.dim
     on = np.asarray(factor) != 0.0
     sides, factor = sides[on], np.asarray(factor)[on]
-    t = np.zeros((sides.shape[0], dim))
+    t = np.zeros((sides.shape[0], sides.shape[1], dim))
     region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
     normal = side_normals(mesh.nodes, sides)
-    centre = mesh.nodes[sides].mean(axis=1)
     pairs = [(0, 3), (3, 1)] if dim == 2 else [(0, 3, 5), (3, 1, 4), (5, 4, 2)]  # Voigt rows of sigma
     for k, g in enumerate(bulks):
         field_ = initial.field(g.region)
         rows = region_of == k
         if field_ is None or not rows.any():
             continue
-        sig = field_(centre[rows][:, :2] if dim == 2 else centre[rows])
+        x = mesh.nodes[sides[rows]]  # (r, s, 3)
+        sig = field_(x.reshape(-1, x.shape[-1])[:, :dim]).reshape(x.shape[0], x.shape[1], 6)
         for i, voigt in enumerate(pairs):
-            t[rows, i] = sum(sig[:, v] * normal[rows, j] for j, v in enumerate(voigt))
-    return sides, t * factor[:, None]
+            t[rows, :, i] = sum(sig[..., v] * normal[rows, None, j] for j, v in enumerate(voigt))
+    return sides, t * factor[:, None, None]
 
 
 def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model) -> None:

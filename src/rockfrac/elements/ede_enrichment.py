@@ -204,14 +204,15 @@ class EnrichmentRegistry:
 
     # -- loads on a boundary the crack crosses --------------------------------------------------
     def surface_forces(self, sides: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray:
-        """The q part (n_dofs,) of the nodal forces of uniform tractions (m, dim) [Pa] on boundary sides
-        (m, 2) edges in 2D, (m, 3|4) faces in 3D (mesh nodes): on a side a crack crosses, node a's q
-        takes (H_other - H_a) t times the integral of N_a over the part of the side across the crack
-        from a (the group's :meth:`split_side`); the rest is zero."""
+        """The q part (n_dofs,) of the nodal forces of tractions [Pa] on boundary sides (m, 2) edges in
+        2D, (m, 3|4) faces in 3D (mesh nodes), uniform per side (m, dim) or at the side's nodes (m, s,
+        dim), interpolated between them: on a side a crack crosses, node a's q takes (H_other - H_a)
+        times the integral of N_a t over the part of the side across the crack from a (the group's
+        :meth:`split_side`); the rest is zero."""
         out = np.zeros(n_dofs)
         if not self.cut or sides.size == 0:
             return out
-        load = {side_key(nodes): tractions[k] for k, nodes in enumerate(sides.tolist())}
+        load = {side_key(nodes): (nodes, tractions[k]) for k, nodes in enumerate(sides.tolist())}
         for gcell in self.cut_order:
             gi, e, crack = self.cut[gcell]
             crack = self.find(crack)
@@ -220,12 +221,15 @@ class EnrichmentRegistry:
                 key = side_key(nodes)
                 if key not in load or len(self.side_cells.get(key, [])) != 1:
                     continue  # not a loaded boundary side
-                for node, share in g.split_side(e, nodes).items():
+                order, t = load[key]
+                at_nodes = (np.broadcast_to(t, (len(nodes), self.dim)) if t.ndim == 1
+                            else t[[order.index(v) for v in nodes]])  # in the order of ``nodes``
+                for node, weights in g.split_side(e, nodes).items():
                     i = int(self.index(np.array(node)))
                     if not self.enriched[i] or self.crack_of[i] != crack:
                         continue
                     dofs = self.offset + self.dim * i + np.arange(self.dim)
-                    out[dofs] += share * load[key]
+                    out[dofs] += weights @ at_nodes
         return out
 
 

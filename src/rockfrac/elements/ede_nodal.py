@@ -29,6 +29,8 @@ crack's trace on their common face. One process.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rockfrac.elements import ede_kernel as K
@@ -38,8 +40,8 @@ from rockfrac.elements.ede import EmbeddedDruckerPrager
 from rockfrac.elements.ede_enrichment import EnrichmentRegistry
 from rockfrac.elements.ede_nodal_parts import CutCells, HeldEnrichment
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
-from rockfrac.fem.cut_cell import FACES, TRIANGLE_RULE_3, clip_by, cut_cell, cut_cell_3d, inverse_map, physical_gradients
-from rockfrac.fem.loads import quadrature_points
+from rockfrac.fem.cut_cell import FACES, TRIANGLE_RULE_6, clip_by, cut_cell, cut_cell_3d, inverse_map, physical_gradients
+from rockfrac.fem.loads import StressField, quadrature_points
 from rockfrac.laws import embedded_penalty as EP
 from rockfrac.laws.drucker_prager_params import N_STATE, S_EPS_P, S_MODE
 from rockfrac.laws.elastic import isotropic_compliance, strain_energy
@@ -52,8 +54,8 @@ CRACK_POINTS = {"quad4": 3, "tri3": 3, "tet4": 12, "hex8": 36}
 CROSSED = {"quad4": (2, 2, 1), "tri3": (2, 2, 1), "tet4": (4, 3, 2), "hex8": (6, 4, 2)}  # sides, nodes, trace
 
 #: the arrays of the cut cells, one row each (resized as cells are cut; checkpointed)
-CUT_ARRAYS = ("cc_w", "cc_side", "cc_grads", "cc_hnode", "cc_state", "cc_sigma", "cc_shape", "cc_wk", "cc_frame",
-              "cc_cp", "cc_sides", "cc_traces", "cc_cell")
+CUT_ARRAYS = ("cc_w", "cc_side", "cc_grads", "cc_nside", "cc_hnode", "cc_state", "cc_sigma", "cc_shape", "cc_wk",
+              "cc_frame", "cc_cp", "cc_sides", "cc_traces", "cc_cell")
 
 
 class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
@@ -81,6 +83,7 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self._allocate(0)
         self._last_d = np.zeros(self.dofs.shape)  # element displacements of the last evaluation
         self._compliance = isotropic_compliance(self.E, self.nu)  # S: eps_e = sigma S (Voigt rows)
+        self._sigma0: StressField | None = None  # the in-situ stress field (its variation inside a cut cell)
         self.crack_work = 0.0  # the traction law's work on the crack (its dissipation) [J]
         self.cut_energy = 0.0  # the stored energy the cuts' re-integration of their cells added [J]
         # the crack points' state slots (rockfrac.laws.embedded_penalty), in 2D or 3D
@@ -100,6 +103,7 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self.cc_w = np.zeros((n, m))
         self.cc_side = np.zeros((n, m))
         self.cc_grads = np.zeros((n, m, k, dim))
+        self.cc_nside = np.zeros((n, m, k))  # the shape values at the side points
         self.cc_hnode = np.zeros((n, k))
         self.cc_state = np.zeros((n, m, N_STATE))
         self.cc_sigma = np.zeros((n, m, 6))
@@ -192,6 +196,7 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self.cc_w[slot, :m] = cc.weights
         self.cc_side[slot, :m] = cc.side
         self.cc_grads[slot, :m] = physical_gradients(self.ref, xe, cc.xi)
+        self.cc_nside[slot, :m] = self.ref.shape(cc.xi)
         self.cc_hnode[slot] = self.active[e]
         # each side point takes the committed state of its nearest Gauss point, with the plastic strain
         # that gives that point's stress at the side point's strain (the cut changes no stress); every
@@ -199,6 +204,8 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         gauss = quadrature_points(self.nodes, self.cells[e:e + 1], self.ref)[0]  # (n_qp, dim)
         nearest = np.argmin(np.linalg.norm(cc.x[:, None, :] - gauss[None, :, :], axis=2), axis=1)
         sigma = self.sigma[e, nearest]
+        if self._sigma0 is not None:  # with the in-situ stress's variation from the Gauss point to the side point
+            sigma = sigma + self._sigma0(cc.x) - self._sigma0(gauss[nearest])
         self.cc_state[slot, :m] = self.state[e, nearest]
         self.cc_state[slot, :m, S_MODE] = 0.0
         strain = self._strains_at(e, self.cc_grads[slot, :m])
@@ -210,11 +217,20 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self.cc_wk[slot, :points] = cc.crack_weights
         if dim == 2:
             self.cc_frame[slot, 0], self.cc_frame[slot, 1] = t, n
-            start = EP.initial_state(s[K.E_Q], s[K.E_P], c_p)
         else:  # t1 along the shear traction at the cut (q >= 0 along it), t2 = n x t1
             self.cc_frame[slot] = [t, np.cross(n, t), n]
-            start = EP.initial_state_3d(np.array([s[K.E_Q], 0.0, s[K.E_P]]), c_p)
-        self.cc_cp[slot, :points] = start
+        start = np.zeros(dim)
+        start[0], start[-1] = s[K.E_Q], s[K.E_P]  # (q, 0, P) in the crack's frame
+        starts = np.broadcast_to(start, (points, dim))
+        if self._sigma0 is not None:  # each point with the in-situ stress's variation from the cell's mean
+            w = self.wdet[e] / self.wdet[e].sum()
+            change = self._sigma0(cc.crack_x) - w @ self._sigma0(gauss)  # (points, 6) Voigt [Pa]
+            starts = starts + np.einsum("ij,pjk,k->pi", self.cc_frame[slot], _tensors(change, dim), n)
+        for k in range(points):
+            self.cc_cp[slot, k] = (EP.initial_state(starts[k, 0], starts[k, 1], c_p) if dim == 2
+                                   else EP.initial_state_3d(starts[k], c_p))
+        if dim == 2:  # the slip sense is the cell's
+            self.cc_cp[slot, :points, EP.CP_SIGN] = 1.0 if s[K.E_Q] >= 0.0 else -1.0
         self._record_sides(slot, e, cc)
         self.cc_trial[slot], self.cc_trial_sigma[slot] = self.cc_state[slot], self.cc_sigma[slot]
         self.cc_cp_trial[slot] = self.cc_cp[slot]
@@ -223,6 +239,27 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
             self.cut_serial[e] = len(self.registry.cut_order)
             self.crack_of_cell[e] = self.registry.register_cut(self, e)
         return c_p
+
+    def set_initial_stress(self, stress: StressField) -> None:
+        """As every Drucker-Prager group; the field is kept for the cells cut later (their side and
+        crack points take its value where they lie, not their Gauss point's)."""
+        super().set_initial_stress(stress)
+        self._sigma0 = stress
+
+    def enriched_body_forces(self, body: dict[str, np.ndarray], n_dofs: int) -> np.ndarray | None:
+        """The q part (n_dofs,) of the nodal forces of body forces [N/m^3] per region (gravity: density
+        times g): node a's q takes the integral of e_a (H - H_a) N_a b over its cut cells' sides."""
+        b = body.get(self.region)
+        if b is None or not np.any(b) or not self.cc_cell.size:
+            return None
+        assert self.registry is not None
+        enr = self.enrichment()[self.cc_cell]
+        factor = enr[:, None, :] * (self.cc_side[:, :, None] - self.cc_hnode[:, None, :])  # (c, m, k)
+        share = np.einsum("cp,cpk,cpk->ck", self.cc_w, self.cc_nside, factor)
+        q = self.registry.dofs(self.cells[self.cc_cell])
+        out = np.zeros(n_dofs)
+        np.add.at(out, q.ravel(), (share[:, :, None] * np.asarray(b, dtype=float)[None, None, :]).ravel())
+        return out
 
     def _record_sides(self, slot: int, e: int, cc) -> None:
         """The cell's sides the crack crosses (mesh nodes) and its trace on each: 2D its end point on
@@ -264,10 +301,11 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
                 out.append((tuple(int(v) for v in nodes if v >= 0), trace))
         return out
 
-    def split_side(self, e: int, nodes: tuple[int, ...]) -> dict[int, float]:
+    def split_side(self, e: int, nodes: tuple[int, ...]) -> dict[int, np.ndarray]:
         """For each node a of a side of cut cell e that the crack crosses: (H_other - H_a) times the
-        integral of N_a over the part of the side across the crack from a [m in 2D, m^2 in 3D] (a
-        uniform traction's share on a's enrichment)."""
+        integrals of N_a N_b over the part of the side across the crack from a, b over the side's
+        nodes [m in 2D, m^2 in 3D] (the share on a's enrichment of a traction interpolated from the
+        side's nodes: exact for a linear one)."""
         h = {int(a): float(v) for a, v in zip(self.cells[e], self.active[e])}
         local = [int(np.flatnonzero(self.cells[e] == v)[0]) for v in nodes]
         xs = self.x[e, local]
@@ -279,10 +317,13 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
             part = clip_by(xs, dist, 1.0 if other == 1.0 else -1.0)  # the side's part across from a
             if part.shape[0] < 2:
                 continue
-            if self.dim == 2:
-                pts, w = part, np.full(2, 0.5 * np.linalg.norm(part[1] - part[0]))  # linear N: trapezoid
-            else:
-                rule, rule_w = TRIANGLE_RULE_3
+            if self.dim == 2:  # two Gauss points: N_a N_b is quadratic along the edge
+                half = 0.5 * (part[1] - part[0])
+                mid = 0.5 * (part[0] + part[1])
+                g = half / math.sqrt(3.0)
+                pts, w = np.array([mid - g, mid + g]), np.full(2, np.linalg.norm(half))
+            else:  # six points of degree 4 on each triangle of the part (N_a N_b: bilinear squared)
+                rule, rule_w = TRIANGLE_RULE_6
                 pts_list, w_list = [], []
                 for j in range(1, part.shape[0] - 1):
                     tri = part[[0, j, j + 1]]
@@ -290,8 +331,8 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
                     pts_list.append(rule @ tri)
                     w_list.append(rule_w * area)
                 pts, w = np.vstack(pts_list), np.concatenate(w_list)
-            shape = self.ref.shape(inverse_map(self.ref, self.x[e], pts))[:, a]
-            out[node] = (other - h[node]) * float(w @ shape)
+            shape = self.ref.shape(inverse_map(self.ref, self.x[e], pts))[:, local]  # (points, side nodes)
+            out[node] = (other - h[node]) * ((w * shape[:, local.index(a)]) @ shape)
         return out
 
     # -- the discrete equations ---------------------------------------------------------------
@@ -414,3 +455,9 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self.cut_energy = float(saved["cut_energy"]) if "cut_energy" in saved else 0.0
         if self.registry is not None:
             self.registry.restored(self)
+
+
+def _tensors(voigt: np.ndarray, dim: int) -> np.ndarray:
+    """Stress tensors (p, dim, dim) of Voigt rows (p, 6): xx, yy, zz, xy, yz, xz."""
+    index = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2]])[:dim, :dim]
+    return voigt[:, index]

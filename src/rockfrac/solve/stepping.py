@@ -42,13 +42,18 @@ class Stage:
     path: PathSpec | None = None
     source: str = ""  # the input that sets this stage's loads, named in a failure ("[loading] confinement")
     dirichlet: np.ndarray | None = None  # the stage's prescribed dofs (sorted)
-    # uniform tractions on boundary edges at the end of the stage, (m, 2) mesh nodes and (m, dim) [Pa]:
-    # what a crack with enriched unknowns needs to split a boundary's load between its two sides
+    # tractions on boundary sides at the end of the stage, (m, s) mesh nodes (edges in 2D, faces in 3D)
+    # and their values at those nodes (m, s, dim) [Pa] (or uniform per side, (m, dim)): what a crack
+    # with enriched unknowns needs to split a boundary's load between its two sides
     surface_edges: np.ndarray | None = None
     surface_tractions: np.ndarray | None = None
     # the same at t = 0, on the first stage (the in-situ tractions of the forces f0 it starts from)
     start_edges: np.ndarray | None = None
     start_tractions: np.ndarray | None = None
+    # body forces per region at the end of the stage [N/m^3] (gravity: density x g), and at t = 0 on
+    # the first stage: the enriched unknowns' share of them
+    body_force: dict[str, np.ndarray] | None = None
+    start_body_force: dict[str, np.ndarray] | None = None
 
     def end_values(self, dofs: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Prescribed values at the end of the stage on ``dofs`` (the model's Dirichlet set in this
@@ -309,17 +314,20 @@ def run_stages(
 class _EnrichedLoads:
     """Keeps the stages' external forces on a model's enriched unknowns (a crack's, see
     rockfrac.elements.ede_enrichment) up to date: called after every change, it adds to each stage's
-    own forces the share of its boundary tractions that the enrichment takes now (in place, so
-    that a stage's start forces, the previous stage's end ones, follow), and to the forces f0 the
-    run starts from the share of the first stage's ``start_*`` tractions. Returns True if they changed."""
+    own forces the share of its boundary tractions and body forces that the enrichment takes now
+    (in place, so that a stage's start forces, the previous stage's end ones, follow), and to the
+    forces f0 the run starts from the share of the first stage's ``start_*`` loads. Returns True if
+    they changed."""
 
     def __init__(self, model: Model, stages: list[Stage], f0: np.ndarray | None = None):
         self.model = model
         self.stages = stages
         first = stages[0] if stages else None
-        self.f0 = f0 if first is not None and first.start_edges is not None and first.start_edges.size else None
+        at_start = first is not None and ((first.start_edges is not None and first.start_edges.size > 0)
+                                          or _loaded(first.start_body_force))
+        self.f0 = f0 if at_start else None
         self.active = model.enrichment_version() is not None and (self.f0 is not None or any(
-            s.surface_edges is not None and s.surface_edges.size for s in stages))
+            (s.surface_edges is not None and s.surface_edges.size) or _loaded(s.body_force) for s in stages))
         self.own = [s.f_ext_end.copy() for s in stages] if self.active else []
         self.own0 = self.f0.copy() if self.active and self.f0 is not None else None
         self.seen: tuple[int, ...] | None = None
@@ -332,14 +340,27 @@ class _EnrichedLoads:
             return False
         self.seen = version
         for stage, own in zip(self.stages, self.own):
-            stage.f_ext_end[:] = own
-            if stage.surface_edges is not None and stage.surface_tractions is not None and stage.surface_edges.size:
-                stage.f_ext_end[:] += self.model.enriched_surface_forces(stage.surface_edges, stage.surface_tractions)
+            stage.f_ext_end[:] = own + self._share(stage.surface_edges, stage.surface_tractions, stage.body_force)
         first = self.stages[0]
-        if (self.f0 is not None and self.own0 is not None and first.start_edges is not None
-                and first.start_tractions is not None):
-            self.f0[:] = self.own0 + self.model.enriched_surface_forces(first.start_edges, first.start_tractions)
+        if self.f0 is not None and self.own0 is not None:
+            self.f0[:] = self.own0 + self._share(first.start_edges, first.start_tractions, first.start_body_force)
         return True
+
+    def _share(self, edges: np.ndarray | None, tractions: np.ndarray | None,
+               body: dict[str, np.ndarray] | None) -> np.ndarray | float:
+        """The enriched unknowns' share of boundary tractions and body forces (0.0: none)."""
+        out: np.ndarray | float = 0.0
+        if edges is not None and tractions is not None and edges.size:
+            out = out + self.model.enriched_surface_forces(edges, tractions)
+        if _loaded(body):
+            assert body is not None
+            out = out + self.model.enriched_body_forces(body)
+        return out
+
+
+def _loaded(body: dict[str, np.ndarray] | None) -> bool:
+    """Body forces that are not zero somewhere."""
+    return body is not None and any(np.any(b) for b in body.values())
 
 
 def _end_map(model: Model, stage: Stage, previous: np.ndarray, d_end: np.ndarray | None = None) -> np.ndarray:

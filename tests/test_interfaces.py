@@ -16,6 +16,7 @@ from rockfrac.mesh.interfaces import (
     edges_within,
     insert_interfaces,
     internal_edges,
+    looped_pairs,
     minus_side,
     tied_nodes,
 )
@@ -331,3 +332,38 @@ def test_random_selections_against_a_plain_loop(seed):
                 root[find(c0)] = find(c1)
         expected += len({find(c) for c in cells}) if v in on_crack else 1
     assert new.n_nodes == expected
+
+
+@pytest.mark.parametrize("tri", [False, True])
+def test_a_pair_on_a_loop_cannot_open_alone(tri):
+    """Surfaces on every edge, each node split into one copy per cell: round a node inside the mesh
+    the pairs close a loop, so with every other pair held shut a pair there has no jump (its rows
+    are in the span of the others': a crack tip inside the mesh stays shut, the RP warning's
+    kinematics); on the boundary the fans are chains and each pair can open alone. looped_pairs
+    tells them apart, also for a crack whose pairs are bridges."""
+    from rockfrac.elements.interface_points import interface_points
+
+    m = grid(3, 3, tri)
+    for sel, expect_loops in ((all_edges(m), True), (edges_on(m, chain((0, 1), (3, 1), nx=3)), False)):
+        new = insert_interfaces(m, sel)
+        pts = interface_points(new.nodes, new.interfaces)
+        jump = np.zeros((2 * pts.n, 2 * new.n_nodes))  # the jump operator: rows (point, component)
+        for k in range(pts.n):
+            for a in range(2):
+                jump[2 * k + a, 2 * pts.plus[k] + a] += 1.0
+                jump[2 * k + a, 2 * pts.minus[k] + a] -= 1.0
+        looped = looped_pairs(pts.minus, pts.plus, new.n_nodes)
+        assert looped.any() == expect_loops and (~looped).any()
+        full = np.linalg.matrix_rank(jump)
+        for k in range(pts.n):
+            gain = full - np.linalg.matrix_rank(np.delete(jump, [2 * k, 2 * k + 1], axis=0))
+            assert gain == (0 if looped[k] else 2), (k, looped[k])
+
+
+def test_looped_pairs_are_the_graph_edges_on_a_cycle():
+    """A 4-cycle of copies with a tail hanging off it and a doubled pair beside: the cycle's pairs and
+    the doubled ones are looped, the tail's (bridges) are not; node numbers need not be contiguous."""
+    minus = np.array([10, 11, 12, 13, 13, 14, 20, 20])
+    plus = np.array([11, 12, 13, 10, 14, 15, 21, 21])
+    np.testing.assert_array_equal(looped_pairs(minus, plus),
+                                  [True, True, True, True, False, False, True, True])

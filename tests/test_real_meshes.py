@@ -31,6 +31,13 @@ def test_rp_on_every_edge_reproduces_the_unsplit_solution_and_physical_junction_
     np.testing.assert_allclose(p["T_n"][horizontal], -a["F_axial"][-1] / 0.04, rtol=1e-7)
     np.testing.assert_allclose(p["T_n"][vertical], -2e4, rtol=1e-7)
     assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
+    # the user is told that such surfaces cannot open one at a time inside the mesh: the 3 x 5
+    # interior nodes' loops of 4 pairs (60 points); the paper's one RP crack gets no such warning
+    loops = [w for w in s.warnings or [] if "lie on loops of surfaces round a node" in w]
+    assert len(loops) == 1 and "60 of its points" in loops[0]
+    paper = run_case(parse_case(dict(BASE, mesh=dict(BASE["mesh"], crack=True),
+                                     cohesive=dict(table1.CSE_LAW, form="rp"))), tmp_path / "c")
+    assert not any("loops of surfaces" in w for w in paper.warnings or [])
 
 
 def test_ep_on_every_edge_is_softer_by_its_penalties(tmp_path):

@@ -20,9 +20,11 @@ from rockfrac.analytic import penalty_rule, plane_strain_modulus
 from rockfrac.case.build import Built, Distribution, build, mean_cell_size
 from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
+from rockfrac.elements.cse_groups import CohesiveRP
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
+from rockfrac.mesh.interfaces import looped_pairs
 from rockfrac.output import checkpoint
 from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, rows_digest
 from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
@@ -68,8 +70,23 @@ class RunSummary:
 def case_warnings(built: Built) -> list[str]:
     """Things a user should know before trusting the run (not errors: the run goes ahead)."""
     out = []
+    model = built.model
+    if any(isinstance(g, CohesiveRP) for g in built.cohesives):  # the pairs of every set, on every rank
+        minus, plus = (np.concatenate([a for part in model.allgather([getattr(g.points, side) for g in built.cohesives])
+                                       for a in part]) for side in ("minus", "plus"))
+        on_loops = looped_pairs(minus, plus, built.mesh.n_nodes)
+        looped = set(zip(minus[on_loops].tolist(), plus[on_loops].tolist()))
     for coh, group in zip(built.case.cohesive_sets, built.cohesives):
-        if coh.form.value != "ep":
+        if isinstance(group, CohesiveRP):
+            mine = sum(pair in looped for pair in zip(group.points.minus.tolist(), group.points.plus.tolist()))
+            count = model.reduce_sum(mine)
+            if count:
+                out.append(f"RP CSE {group.name!r}: {count} of its points lie on loops of surfaces round a node (a node "
+                           "inside the mesh split on every edge round it). Held by the others, such a rigid-plastic "
+                           "surface cannot open alone: a crack tip inside the mesh stays shut, so a crack forms only "
+                           "where a whole chain of surfaces yields at once (from a free boundary, or along a uniformly "
+                           "stressed line), later and at a higher load than with EP surfaces; for fragmentation use "
+                           "form = 'ep' (benchmarks/README.md, 'Fragmentation')")
             continue
         soft_bulk = min(built.case.material_list, key=lambda m: m.E)
         e_plane = plane_strain_modulus(soft_bulk.E, soft_bulk.nu)

@@ -345,3 +345,47 @@ def tied_nodes(mesh: Mesh) -> np.ndarray:
     rep = np.full(labels.max(initial=-1) + 1, n, dtype=np.int64)
     np.minimum.at(rep, labels, np.arange(n))
     return rep[labels]
+
+
+def looped_pairs(minus: np.ndarray, plus: np.ndarray, n_nodes: int | None = None) -> np.ndarray:
+    """For each node pair (an interface point: copies minus, plus of one node), whether it lies on a
+    loop of pairs: the copies of a node inside the mesh split on every edge round it, each tied to
+    the next. Held by the others, such a pair has no jump (a crack tip inside the mesh stays shut);
+    a pair on no loop (a bridge of the graph of copies: a boundary node's fan, a crack's own pair)
+    can open alone. (n_pairs,) bool; Tarjan's bridges, O(pairs)."""
+    m, p = np.asarray(minus, dtype=np.int64), np.asarray(plus, dtype=np.int64)
+    ends, local = np.unique(np.concatenate([m, p]), return_inverse=True)
+    a, b = local[:m.size].tolist(), local[m.size:].tolist()
+    adjacent: list[list[tuple[int, int]]] = [[] for _ in range(ends.size)]
+    for e, (x, y) in enumerate(zip(a, b)):
+        adjacent[x].append((y, e))
+        adjacent[y].append((x, e))
+    found = [-1] * ends.size  # discovery time
+    low = [0] * ends.size
+    bridge = np.zeros(m.size, dtype=bool)
+    clock = 0
+    for root in range(ends.size):
+        if found[root] >= 0:
+            continue
+        found[root] = low[root] = clock
+        clock += 1
+        stack = [(root, -1, iter(adjacent[root]))]
+        while stack:
+            v, through, rest = stack[-1]
+            for w, e in rest:
+                if e == through:
+                    continue
+                if found[w] < 0:
+                    found[w] = low[w] = clock
+                    clock += 1
+                    stack.append((w, e, iter(adjacent[w])))
+                    break
+                low[v] = min(low[v], found[w])
+            else:
+                stack.pop()
+                if stack:
+                    u = stack[-1][0]
+                    low[u] = min(low[u], low[v])
+                    if low[v] > found[u]:
+                        bridge[through] = True
+    return ~bridge

@@ -259,18 +259,6 @@ def test_bad_nodal_sections_are_refused(change, expected):
         parse_case(case)
 
 
-def test_nodal_cracks_are_refused_on_several_ranks():
-    """One MPI rank's groups (an ``owned`` mask) with nodal cracks: refused by name before any step."""
-    from rockfrac.case.build import resolve
-    from rockfrac.case.build_groups import make_bulk_groups
-    from rockfrac.case.build_mesh import make_mesh
-
-    case = resolve(parse_case(crack_case(block(6, 12))))
-    mesh = make_mesh(case, "<case>")
-    with pytest.raises(CaseError, match=r"kinematics = 'nodal': it runs on one process"):
-        make_bulk_groups(case, mesh, "<case>", owned=np.ones(mesh.cells.shape[0], dtype=bool))
-
-
 def test_in_situ_stress_is_an_equilibrium_with_a_crack_across(tmp_path):
     """An anisotropic in-situ stress (with shear) held by its tractions on the whole outer boundary,
     and a crack given from side to side: the crack is cut after the stress is set, so its points start

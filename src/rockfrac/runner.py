@@ -363,11 +363,11 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         with stop_on_signals() as request:
             stop = request if distribution is None else (lambda: model.reduce_any(request()))
             newton, stepping = engine_options(built, stop)
+            enriched = any(isinstance(g, HeldEnrichment) for g in built.model.groups)
             if distribution is None:
-                solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs,
-                                     enrichment=any(isinstance(g, HeldEnrichment) for g in built.model.groups))
+                solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs, enrichment=enriched)
             else:
-                solver = distribution.make_solver(sol.linear.value, built.model.n_dofs, built.mesh.dim)
+                solver = distribution.make_solver(sol.linear.value, built.model.n_dofs, built.mesh.dim, enriched)
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
             result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                                 start=start, should_stop=stop, u0=built.program.u0, f0=built.program.f0)

@@ -31,6 +31,7 @@ from rockfrac.case.schema import Case
 from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
+from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.elements.interface_points import interface_points, interface_points_3d
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
@@ -48,7 +49,7 @@ class Distribution:
     split: Callable[[Mesh], Partition]
     rank: int
     make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
-    make_solver: Callable[[str, int, int], Any]  # [solver] linear, dofs, dimension -> the distributed solver
+    make_solver: Callable[[str, int, int, bool], Any]  # [solver] linear, dofs, dimension, nodal cracks -> solver
     exchange: Any = None  # the ranks' allgather, before the model exists (rockfrac.elements.ede_paths.Exchange)
 
 
@@ -156,7 +157,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         part = distribution.split(mesh)
         owned = part.cell_part == distribution.rank
     try:
-        bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None)
+        bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None,
+                                 distribution.rank if distribution is not None else 0)
     except CaseError:
         raise
     except ValueError as err:
@@ -176,13 +178,18 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
             if isinstance(g, CohesiveRP):
                 g.total_points = total  # the multipliers are numbered over the whole set, on every rank
         cohesives += groups
+    extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
+    held = [g for g in extras if isinstance(g, HeldEnrichment)]
+    if part is not None and distribution is not None and held:  # each node's q's on the rank of its dofs
+        owner = part.node_part[held[0].registry.nodes]
+        held[0].hold_only(np.flatnonzero(owner == distribution.rank))
+        extra_part.append(owner)
     if part is not None and extra_part:
         part = part.with_extras(np.concatenate(extra_part))
     if distribution is None or part is None:
-        extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
         model = Model(mesh.n_nodes, bulks + cohesives + extras, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:
-        model = distribution.make_model(mesh, bulks + cohesives, part)
+        model = distribution.make_model(mesh, bulks + cohesives + extras, part)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
     program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
     cut_given_cracks(case, bulks, mesh, path)  # after the state at t = 0 (build_program's in-situ stress)

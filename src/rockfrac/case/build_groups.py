@@ -111,21 +111,18 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
 
 
-def refuse_nodal(case: Case, mesh: Mesh, path: str, ranks: bool) -> None:
-    """What [embedded] kinematics = 'nodal' does not do yet, refused by name before any step."""
-    why = None
+def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:
+    """What [embedded] kinematics = 'nodal' does not do, refused by name before any step."""
     if mesh.dim == 3 and case.mesh.kind is MeshKind.specimen:
-        why = "the plane-strain hexahedra of the paper's specimen are not cut (a 2D mesh or a general 3D body)"
-    elif ranks:
-        why = "it runs on one process (not on several MPI ranks yet)"
-    if why:
-        raise CaseError(f"{path}: [embedded] kinematics = 'nodal': {why}")
+        raise CaseError(f"{path}: [embedded] kinematics = 'nodal': the plane-strain hexahedra of the paper's "
+                        "specimen are not cut (a 2D mesh or a general 3D body)")
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
-                     exchange: Exchange | None = None) -> list:
+                     exchange: Exchange | None = None, rank: int = 0) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
-    ``owned`` (a mask over the cells): only these cells (one MPI rank's), ``exchange``: the ranks'."""
+    ``owned`` (a mask over the cells): only these cells (one MPI rank's, ``rank``), ``exchange``: the
+    ranks'."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
@@ -136,7 +133,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
                         "the drucker_prager regions with hexahedra, use kinematics = 'nodal', or remove "
                         "[embedded]")
     if emb is not None and emb.kinematics == "nodal":
-        refuse_nodal(case, mesh, path, owned is not None)
+        refuse_nodal(case, mesh, path)
     ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
@@ -179,7 +176,9 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
             share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
     nodal = [g for g in groups if isinstance(g, NodalEmbeddedDruckerPrager)]
     if nodal:  # one enrichment for every nodal group (a crack crosses regions), its unknowns owned by the first
-        registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim)
+        registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim,
+                                      every_cell=[mesh.cells[full[id(g)]] for g in nodal],
+                                      exchange=exchange if owned is not None else None, rank=rank)
         for k, g in enumerate(nodal):
             g.attach(registry, first=k == 0)
     return groups

@@ -217,6 +217,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         mine = [(ratio, int(serial[ids[e]]), int(ids[e]), bool((self.state[e, :, S_MODE] == MODE_CONE).any()),
                  where[e][2]) for ratio, e in ready]
         pending = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:2])
+        any_ready = bool(pending)  # on any rank (the scan below is collective)
         k = paths.groups.index(self)
         tips = paths.tip_cells_global(k)
         self.deferred[:] = False
@@ -239,15 +240,20 @@ class EmbeddedDruckerPrager(EmbeddedCells):
                 if group == k:
                     self._open(int(local), ratio, loc, tip, normal)
                 paths.announce(gcell)
+                self.cut_announced(gcell)
                 pending.remove(cand)
                 progress = True
-        if not ready or not self.tip_events:
+        if not any_ready or not self.tip_events:
             return best
         # the indicator after the cuts, over the cells that may open next (the new tips): an onset in
         # the next step is then located as an event
         self.deferred[[int(paths.owner[c[2]][1]) for c in pending if paths.owner[c[2]][0] == k]] = True
         paths.current()
         return self._scan(self.state, self.sigma, self._eligible(), exact_cells=False)[0]
+
+    def cut_announced(self, gcell: int) -> None:
+        """Called on every rank, in the same order, after mesh cell gcell (of this group, on any rank)
+        was cut and its surface announced (a nodal crack enters it in its enrichment)."""
 
     # -- crack path (2D) ---------------------------------------------------------------------
     @property

@@ -64,7 +64,7 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
     total = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     covered = 0.0
     cut = 0
-    for g, conn in zip(paths.groups, paths.full_conn):
+    for g, conn, ids in zip(paths.groups, paths.full_conn, paths.full_ids):
         xe = paths.nodes[conn][..., :2]
         size = np.zeros(conn.shape[0])
         for index, own in paths.exchange.allgather((g.serial_index, np.sqrt(g.wdet.sum(axis=1)))):
@@ -99,6 +99,7 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
                 continue  # along an edge of the cell, or through a corner only: not a cut of this cell
             if local[e] >= 0:  # this rank's cell
                 g.localize_cell(int(local[e]), normal, c_p=c_p, point=start)
+            g.cut_announced(int(ids[e]))
             covered += sum(float(np.linalg.norm(piece[1] - piece[0])) for piece in pieces)
             cut += 1
     paths.cracks += 1
@@ -128,9 +129,15 @@ def cut_by_plane(groups: list, point: np.ndarray, normal: np.ndarray, c_p: float
     if near and min(gap for gap, _ in near) < NODE_TOL:
         p0 = p0 + 2.0 * NODE_TOL * min(size for _, size in near) * n
     cut = 0
-    for g in groups:
-        d = (g.x - p0) @ n
+    paths = groups[0].paths
+    for g in groups:  # the cells of every rank in the serial order: each rank cuts its own, all announce
+        k = paths.groups.index(g)
+        d = (paths.nodes[paths.full_conn[k]] - p0) @ n
+        local = np.full(d.shape[0], -1)
+        local[g.serial_index] = np.arange(g.serial_index.size)
         for e in np.flatnonzero((d.max(axis=1) > 0.0) & (d.min(axis=1) <= 0.0)).tolist():
-            g.localize_cell(e, n, c_p=c_p, point=p0)
-            cut += 1
+            if local[e] >= 0:
+                g.localize_cell(int(local[e]), n, c_p=c_p, point=p0)
+                cut += 1
+            g.cut_announced(int(paths.full_ids[k][e]))
     return int(sum(exchange.allgather(cut)))

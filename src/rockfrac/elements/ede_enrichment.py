@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rockfrac.elements.ede_paths import Alone, Exchange
+
 
 def side_key(nodes) -> tuple[int, ...]:
     """A cell side (an edge in 2D, a face in 3D) as its sorted mesh nodes."""
@@ -46,10 +48,18 @@ class EnrichmentRegistry:
     mesh nodes, the crack's trace on it: its end point in 2D, its segment on the face in 3D).
     """
 
-    def __init__(self, groups: list, mesh_cells: np.ndarray, dim: int = 2):
+    def __init__(self, groups: list, mesh_cells: np.ndarray, dim: int = 2, every_cell: list | None = None,
+                 exchange: Exchange | None = None, rank: int = 0):
+        """every_cell: each group's cells (mesh nodes) on every MPI rank (default: the groups' own);
+        exchange: the ranks' (the registry is then the same on every rank: see :meth:`announce`), of
+        which this is ``rank``."""
         self.groups = groups
         self.dim = dim
-        self.nodes = np.unique(np.concatenate([g.cells.ravel() for g in groups]))
+        cells = every_cell if every_cell is not None else [g.cells for g in groups]
+        self.nodes = np.unique(np.concatenate([np.asarray(c).ravel() for c in cells]))
+        self.exchange: Exchange = exchange if exchange is not None else Alone()
+        self.distributed = exchange is not None
+        self.rank = rank
         self.offset = 0
         self.enriched = np.zeros(self.nodes.size, dtype=bool)
         self.crack_of = np.full(self.nodes.size, -1)
@@ -60,11 +70,16 @@ class EnrichmentRegistry:
         for c, conn in enumerate(mesh_cells.tolist()):
             for side in local:
                 self.side_cells.setdefault(side_key(conn[a] for a in side), []).append(c)
-        self.cut: dict[int, tuple[int, int, int]] = {}  # mesh cell -> (group, local cell, crack id)
+        # every cut cell (any rank's): its owner here (group, local cell; -1, -1 on another rank), its
+        # crack id, the sides it crosses with the crack's traces on them, its mesh nodes
+        self.cut: dict[int, tuple[int, int, int]] = {}
+        self.cut_sides: dict[int, list[tuple[tuple[int, ...], np.ndarray]]] = {}
+        self.cut_nodes: dict[int, tuple[int, ...]] = {}
         self.cut_order: list[int] = []
         self.parent: list[int] = []  # crack ids joined into cracks (union-find)
         self.cracks = 0
         self._restored: set[int] = set()
+        self._pending: dict[int, tuple[int, int]] = {}  # own cuts not announced yet (several ranks)
 
     # -- numbering ----------------------------------------------------------------------------
     @property
@@ -88,26 +103,57 @@ class EnrichmentRegistry:
         self.version += 1  # the cut cells' dofs change with it
 
     # -- the cuts ------------------------------------------------------------------------------
-    def register_cut(self, group, local: int) -> int:
-        """A cell of ``group`` has been cut. Returns its crack: a new one, joined to that of every cut
-        neighbour whose crack crosses a shared side along the same trace (the crack it continues; the
-        cells of a crack given in advance are cut in any order, so two of its pieces meet there)."""
+    def register_cut(self, group, local: int) -> None:
+        """A cell of ``group`` has been cut: on one process, entered at once (:meth:`_enter`); on
+        several ranks, when every rank announces it (:meth:`announce`, in the same order)."""
         gcell = int(group.cell_ids[local])
+        if self.distributed:
+            self._pending[gcell] = (self.groups.index(group), local)
+            return
+        self._enter(gcell, group.crossed_sides(local), group.cells[local], float(group.wdet[local].sum()),
+                    (self.groups.index(group), local))
+
+    def announce(self, gcell: int) -> None:
+        """Every rank: enter the cut of mesh cell gcell as its owner made it (a collective call; one
+        process: nothing, the cut was entered when it was made)."""
+        if not self.distributed:
+            return
+        own = self._pending.pop(gcell, None)
+        mine = None
+        if own is not None:
+            g = self.groups[own[0]]
+            mine = (g.crossed_sides(own[1]), g.cells[own[1]].copy(), float(g.wdet[own[1]].sum()))
+        held = [v for v in self.exchange.allgather(mine) if v is not None]
+        if len(held) != 1:
+            raise RuntimeError(f"cell {gcell} is cut on {len(held)} ranks, not one")
+        sides, cell_nodes, volume = held[0]
+        self._enter(gcell, sides, cell_nodes, volume, own)
+
+    def _enter(self, gcell: int, sides: list, cell_nodes: np.ndarray, volume: float,
+               own: tuple[int, int] | None) -> None:
+        """Enter a cut: its crack is a new one, joined to that of every cut neighbour whose crack
+        crosses a shared side along the same trace (the crack it continues; the cells of a crack
+        given in advance are cut in any order, so two of its pieces meet there). The owner's group
+        keeps the cut's order and crack (checkpointed)."""
         crack = self._new_crack()
-        size = float(group.wdet[local].sum()) ** (1.0 / self.dim)
-        for nodes, trace in group.crossed_sides(local):
+        size = volume ** (1.0 / self.dim)
+        for nodes, trace in sides:
             key = side_key(nodes)
             for other in self.side_cells.get(key, []):
                 if other == gcell or other not in self.cut:
                     continue
-                gi, e, other_crack = self.cut[other]
-                for o_nodes, o_trace in self.groups[gi].crossed_sides(e):
+                for o_nodes, o_trace in self.cut_sides[other]:
                     if side_key(o_nodes) == key and _same_trace(trace, o_trace, 1e-9 * size):
-                        self._join(crack, other_crack)
-        self.cut[gcell] = (self.groups.index(group), local, crack)
+                        self._join(crack, self.cut[other][2])
+        self.cut[gcell] = (own[0], own[1], crack) if own is not None else (-1, -1, crack)
+        self.cut_sides[gcell] = [(tuple(int(v) for v in n), np.asarray(t)) for n, t in sides]
+        self.cut_nodes[gcell] = tuple(int(v) for v in cell_nodes)
+        if own is not None:
+            g = self.groups[own[0]]
+            g.cut_serial[own[1]] = len(self.cut_order)
+            g.crack_of_cell[own[1]] = crack
         self.cut_order.append(gcell)
         self.dirty = True
-        return crack
 
     def _new_crack(self) -> int:
         self.parent.append(len(self.parent))
@@ -132,20 +178,28 @@ class EnrichmentRegistry:
 
     def restored(self, group) -> None:
         """A group's state came back from a checkpoint; once every group's has, the cuts are taken from
-        their cells (each group's ``cut_serial`` and ``crack_of_cell``) in the order they were made."""
+        their cells (each group's ``cut_serial`` and ``crack_of_cell``; on several ranks, every
+        rank's: a collective call) in the order they were made."""
         self._restored.add(id(group))
         if len(self._restored) < len(self.groups):
             return
         self._restored.clear()
-        cuts = []
+        mine = []
         for gi, g in enumerate(self.groups):
             for e in np.flatnonzero(g.cut_serial >= 0).tolist():
-                cuts.append((int(g.cut_serial[e]), int(g.cell_ids[e]), gi, e, int(g.crack_of_cell[e])))
-        cuts.sort()
-        self.cut = {gcell: (gi, e, crack) for _, gcell, gi, e, crack in cuts}
-        self.cut_order = [gcell for _, gcell, _, _, _ in cuts]
-        self.parent = list(range(1 + max((c[4] for c in cuts), default=-1)))  # the groups keep joined ids
+                mine.append((int(g.cut_serial[e]), int(g.cell_ids[e]), int(g.crack_of_cell[e]), g.crossed_sides(e),
+                             tuple(int(v) for v in g.cells[e]), (gi, e)))
+        cuts = sorted(c if k == self.rank else c[:5] + (None,)  # another rank's cut has no owner here
+                      for k, part in enumerate(self.exchange.allgather(mine)) for c in part)
+        self.cut = {gcell: ((own[0], own[1], crack) if own is not None else (-1, -1, crack))
+                    for _, gcell, crack, _, _, own in cuts}
+        self.cut_sides = {gcell: [(tuple(int(v) for v in n), np.asarray(t)) for n, t in sides]
+                          for _, gcell, _, sides, _, _ in cuts}
+        self.cut_nodes = {gcell: nodes for _, gcell, _, _, nodes, _ in cuts}
+        self.cut_order = [gcell for _, gcell, _, _, _, _ in cuts]
+        self.parent = list(range(1 + max((c[2] for c in cuts), default=-1)))  # the groups keep joined ids
         self.cracks = len(self.parent)
+        self._pending.clear()
         self.dirty = True
         self.version += 1
 
@@ -158,18 +212,14 @@ class EnrichmentRegistry:
         crack_of = np.full_like(self.crack_of, -1)
         tips: dict[int, set[int]] = {}  # crack -> nodes of its tip edges
         for gcell in self.cut_order:
-            gi, e, crack = self.cut[gcell]
-            crack = self.find(crack)
-            g = self.groups[gi]
-            for nodes, _ in g.crossed_sides(e):
+            crack = self.find(self.cut[gcell][2])
+            for nodes, _ in self.cut_sides[gcell]:
                 across = [c for c in self.side_cells.get(side_key(nodes), []) if c != gcell]
                 if across and across[0] not in self.cut:
                     tips.setdefault(crack, set()).update(int(v) for v in nodes)
         for gcell in self.cut_order:
-            gi, e, crack = self.cut[gcell]
-            crack = self.find(crack)
-            g = self.groups[gi]
-            for node in g.cells[e].tolist():
+            crack = self.find(self.cut[gcell][2])
+            for node in self.cut_nodes[gcell]:
                 if node in tips.get(crack, ()):
                     continue
                 i = int(self.index(np.array(node)))
@@ -215,9 +265,11 @@ class EnrichmentRegistry:
         load = {side_key(nodes): (nodes, tractions[k]) for k, nodes in enumerate(sides.tolist())}
         for gcell in self.cut_order:
             gi, e, crack = self.cut[gcell]
+            if gi < 0:
+                continue  # another rank's cell: its share is that rank's (the model sums them)
             crack = self.find(crack)
             g = self.groups[gi]
-            for nodes, _ in g.crossed_sides(e):
+            for nodes, _ in self.cut_sides[gcell]:
                 key = side_key(nodes)
                 if key not in load or len(self.side_cells.get(key, [])) != 1:
                     continue  # not a loaded boundary side

@@ -236,8 +236,7 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         self.cc_cp_trial[slot] = self.cc_cp[slot]
         self.cut_slot[e] = slot
         if self.registry is not None:
-            self.cut_serial[e] = len(self.registry.cut_order)
-            self.crack_of_cell[e] = self.registry.register_cut(self, e)
+            self.registry.register_cut(self, e)  # its order and crack (on several ranks, once announced)
         return c_p
 
     def set_initial_stress(self, stress: StressField) -> None:
@@ -260,6 +259,11 @@ class NodalEmbeddedDruckerPrager(EmbeddedDruckerPrager):
         out = np.zeros(n_dofs)
         np.add.at(out, q.ravel(), (share[:, :, None] * np.asarray(b, dtype=float)[None, None, :]).ravel())
         return out
+
+    def cut_announced(self, gcell: int) -> None:
+        """Every rank enters the cut of mesh cell gcell in the enrichment registry (several ranks)."""
+        if self.registry is not None:
+            self.registry.announce(gcell)
 
     def _record_sides(self, slot: int, e: int, cc) -> None:
         """The cell's sides the crack crosses (mesh nodes) and its trace on each: 2D its end point on

@@ -84,11 +84,27 @@ class HeldEnrichment(ElementGroup):
         self.k0 = float(k0)
         self.name = "enrichment"
         self.n_extra = registry.size
-        self.dofs = np.arange(registry.size, dtype=np.int64)[:, None]
+        self.rows = np.arange(registry.size, dtype=np.int64)  # the q's held here (on an MPI rank: its own)
+        self.dofs = self.rows[:, None].copy()
+
+    def hold_only(self, nodes: np.ndarray) -> None:
+        """Hold the q's of these registry nodes only (an MPI rank's: those of the nodes it owns)."""
+        d = self.registry.dim
+        self.rows = (d * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(d)).ravel()
+        self.n_extra = self.rows.size
+        self.dofs = self.registry.offset + self.rows[:, None]
+
+    def extra_span(self) -> int:
+        return self.registry.size  # numbered over every node of the registry, on every rank
 
     def set_offset(self, offset: int) -> None:
         self.registry.set_offset(offset)
-        self.dofs = offset + np.arange(self.registry.size, dtype=np.int64)[:, None]
+        self.dofs = offset + self.rows[:, None]
+
+    def structure_version(self) -> int:
+        """The cuts made so far, any rank's: the same on every rank, so that a distributed model
+        makes its matrix again on all of them at once."""
+        return len(self.registry.cut_order)
 
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """The q's of prescribed displacement components (a crack does not open across a support)."""
@@ -102,7 +118,7 @@ class HeldEnrichment(ElementGroup):
             raise ValueError("the checkpoint was written for a different model (enrichment unknowns)")
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
-        held = ~np.repeat(self.registry.enriched, self.registry.dim)
+        held = ~np.repeat(self.registry.enriched, self.registry.dim)[self.rows]
         k = np.where(held, self.k0, 0.0)
         return Evaluation((k * u[self.dofs[:, 0]])[:, None], k[:, None, None])
 

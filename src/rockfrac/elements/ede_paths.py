@@ -84,6 +84,7 @@ class CrackPaths:
         if len(full) != len(groups):
             raise ValueError(f"{len(full)} full cell lists for {len(groups)} groups")
         self.full_conn = [np.asarray(c) for _, c in full]  # each group's cells of every rank, serial order
+        self.full_ids = [np.asarray(i) for i, _ in full]  # and their mesh cells
         n_cells = int(max((i.max(initial=-1) for i, _ in full), default=-1)) + 1
         self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each own cell
         self.group_of = np.full(n_cells, -1, dtype=np.int64)  # the group of every EDE cell, any rank's

@@ -63,13 +63,31 @@ class DistributedModel(Model):
         n = self.number_extras()  # the multipliers numbered over every rank's points
         if n != self.partition.n_dofs:
             raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {n}: its extra dofs "
-                             "(rigid-plastic multipliers) are not partitioned")
-        touched = [g.dofs.ravel() for g in self.groups]
-        self.layout = Layout(self.comm, self.partition, self.rank,
-                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
+                             "(rigid-plastic multipliers, nodal cracks' enrichments) are not partitioned")
+        self.layout = self._layout()
         super().__post_init__()
         self._local_csr()
         self._matrix = self._preallocated()
+
+    def _layout(self) -> Layout:
+        """The rank's dofs: those its groups' elements touch."""
+        assert self.partition is not None and self.nodes is not None
+        touched = [g.dofs.ravel() for g in self.groups]
+        return Layout(self.comm, self.partition, self.rank,
+                      np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
+
+    def refresh_structure(self) -> bool:
+        """As the serial model, and then the rank's dofs, their scatters and the preallocated matrix
+        made again: a cut cell of a nodal crack brings its enrichments (every rank at once: the
+        registry's cuts are the same on every rank)."""
+        if not super().refresh_structure():
+            return False
+        self.layout.destroy()
+        self.layout = self._layout()
+        self._local_csr()
+        self._matrix.destroy()
+        self._matrix = self._preallocated()
+        return True
 
     def _local_csr(self) -> None:
         """The local pattern's rows and columns of the local dofs (in PETSc order), and where each
@@ -138,6 +156,14 @@ class DistributedModel(Model):
         """Zero the prescribed rows and columns of the distributed tangent, unit diagonal."""
         a.mat.zeroRowsColumns(self._dirichlet_rows, diag=1.0)
         return a
+
+    def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray) -> np.ndarray:
+        """Each rank's cut cells' share, summed over the ranks."""
+        return self.reduce_sum(super().enriched_surface_forces(edges, tractions))
+
+    def enriched_body_forces(self, body: dict[str, np.ndarray]) -> np.ndarray:
+        """Each rank's cut cells' share, summed over the ranks."""
+        return self.reduce_sum(super().enriched_body_forces(body))
 
     # -- reductions over the ranks ---------------------------------------------------------------
     def _owned(self, part: str) -> np.ndarray:

@@ -17,6 +17,7 @@ import numpy as np
 from rockfrac.case.build import Built, Distribution, build
 from rockfrac.case.schema import Case, load_case
 from rockfrac.elements.base import ElementGroup
+from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, partition
 from rockfrac.parallel.model import DistributedModel
@@ -59,7 +60,8 @@ def run_distributed(built: Built, on_step: Callable[[StepInfo], None],
     """Run the stages of a distributed build with the case's [solver] options and its linear solver
     ('auto': MUMPS's LU, or GMRES + GAMG on a large 3D model)."""
     newton, stepping = engine_options(built)
-    solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs, built.mesh.dim)
+    solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs, built.mesh.dim,
+                                any(isinstance(g, HeldEnrichment) for g in built.model.groups))
     log(f"linear solver: {solver.name} on {built.model.comm.Get_size()} ranks")  # type: ignore[attr-defined]
     return run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                       u0=built.program.u0, f0=built.program.f0)

@@ -99,12 +99,14 @@ class KrylovHypre(DistributedSolver):
 DISTRIBUTED_SOLVERS = {s.name: s for s in (MumpsLU, KrylovGAMG, KrylovHypre)}
 
 
-def distributed_solver(name: str, n_dofs: int = 0, dim: int = 2) -> DistributedSolver | Handover:
+def distributed_solver(name: str, n_dofs: int = 0, dim: int = 2, enrichment: bool = False
+                       ) -> DistributedSolver | Handover:
     """The distributed solver for a [solver] linear name: 'petsc' is MUMPS's LU; 'auto' is too, except
-    on a 3D model of at least AMG_FROM_3D dofs (RP multipliers included), where it is GMRES + GAMG
-    handing over to MUMPS's LU at its first failure (the serial rule, rockfrac.solve.linear)."""
+    on a 3D model of at least AMG_FROM_3D dofs (RP multipliers included) without nodal cracks'
+    enrichment, where it is GMRES + GAMG handing over to MUMPS's LU at its first failure (the serial
+    rule, rockfrac.solve.linear)."""
     if name == "auto":
-        if dim == 3 and n_dofs >= AMG_FROM_3D:
+        if dim == 3 and n_dofs >= AMG_FROM_3D and not enrichment:
             return Handover(KrylovGAMG(), MumpsLU())
         return MumpsLU()
     if name not in DISTRIBUTED_SOLVERS:

@@ -16,6 +16,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -133,6 +134,46 @@ def band_case(tracking: str = "local", max_steps: int = 66, element: str = "quad
 PATHS = ROOT / "examples" / "path_following"
 
 
+def nodal_band_case() -> dict:
+    """The band of band_case with nodal cracks (the jump a nodal field, the cut cells' sides apart):
+    the enrichment's cuts announced across the ranks, the matrix made again at every cut."""
+    case = band_case("local", 80)
+    case["embedded"].update(kinematics="nodal", kn=1e10, kt=1e10)
+    return case
+
+
+def nodal_gravity_case() -> dict:
+    """A nodal crack given across a block in a stress that grows with depth, balanced by gravity (its
+    enrichment's share of the boundary tractions and of the body forces, summed over the ranks' cut
+    cells), held, then pushed with gravity doubled."""
+    rho, g = 1e5, 5.0
+    dp = {"model": "drucker_prager", "E": 1.5e7, "nu": 0.3, "beta": 0.480385, "b": 0.321597, "H": 43802.9,
+          "kappa0": 1e8, "density": rho}
+    return {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 6, "ny": 12},
+            "materials": [dict(dp, region="bulk")],
+            "embedded": {"c_r": 0.0, "phi_p": 0.5236, "phi_r": 0.0, "psi_p": 0.087, "alpha_c": 5e3, "alpha_phi": 5e3,
+                         "alpha_psi": 5e3, "kinematics": "nodal", "kn": 1e10, "kt": 1e10, "tracking": "local",
+                         "cracks": [{"points": [[0.0, 0.0235], [0.04, 0.0555]], "c_p": 1e4}]},
+            "initial": {"gravity": [0.0, -g], "stress": [{"stress": [-8e4, -1e5, -9e4, 1e4],
+                                                          "gradient": [0.5 * rho * g, rho * g, 0.5 * rho * g, 0.0]}]},
+            "stages": [{"name": "hold", "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0}}},
+                       {"name": "push", "steps": 6, "gravity": [0.0, -2 * g], "displacement": {"top": {"y": -5e-4}}}]}
+
+
+def nodal_plane_case() -> dict:
+    """A plane given across a box of tetrahedra with nodal cracks (tests/test_nodal_3d.py), confined,
+    then sheared along it under path control (the plane's cells cut in the serial order on every rank)."""
+    from test_nodal_3d import nodal_plane
+
+    from rockfrac.mesh import rock_tests as rt
+
+    msh = rt.box(Path(tempfile.mkdtemp()) / "box.msh", (0.04, 0.04, 0.08), (4, 1, 8), element="tet4")
+    case = nodal_plane(msh)
+    case["stages"][1]["max_steps"] = 30
+    case["output"] = {"vtk": False, "picture": False}
+    return case
+
+
 def bar_case(control: str) -> dict:
     """The path-following bar of examples/path_following (a crack across its middle, under control =
     'arc_length' or 'energy') with an EP crack (kn = kt = 1e11 Pa/m) on 4 x 16 quads. (Its opening
@@ -213,6 +254,10 @@ CASES = {
     "band_none": lambda: band_case("none", 43),
     "band_nonlocal": lambda: band_case("nonlocal"),
     "joint_2d_cracks": joint_2d_case,
+    # nodal embedded cracks: grown across the ranks' cells, given with in-situ stress and gravity, in 3D
+    "band_nodal": nodal_band_case,
+    "nodal_gravity": nodal_gravity_case,
+    "plane_nodal_3d": nodal_plane_case,
     # the band tracked through one layer of hexahedra of a general 3D body (3D crack fronts across ranks)
     "band_3d_local": lambda: band_case("local", 60, element="hex8"),
     "band_3d_nonlocal": lambda: band_case("nonlocal", 60, element="hex8"),
@@ -274,6 +319,10 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
         assert ser["path"].sum() == ser["path"].size  # every step under CMOD control
     elif name == "breakout_initial":
         assert ser["iterations"].max() >= 3  # surfaces yield in the run
+    elif name == "plane_nodal_3d":
+        assert ser["path"].sum() >= 10  # the plane slides under path control
+    elif name == "nodal_gravity":
+        assert np.abs(ser["u"][0]).max() == 0.0 < np.abs(ser["u"][-1]).max()  # at rest at t = 0, then pushed
     elif name == "gravity_initial":
         assert np.abs(ser["u"][1]).max() == 0.0 < np.abs(ser["u"][-1]).max()  # at rest at t = 0, then pushed
     else:

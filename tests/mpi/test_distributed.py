@@ -574,14 +574,16 @@ def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     assert (out / "history.csv").read_text() == whole
 
 
-def test_an_embedded_band_on_ranks_writes_the_serial_outputs_and_resumes(tmp_path):
+@pytest.mark.parametrize("kinematics", ["elemental", "nodal"])
+def test_an_embedded_band_on_ranks_writes_the_serial_outputs_and_resumes(tmp_path, kinematics):
     """`mpiexec -n 2 rockfrac run` of the tracked band: history.csv, points.csv (the cut cells in the
     serial order), the ParaView segments and run.log's onsets as a serial run's; resumed from its
-    checkpoint at step 60, the crack-path table is rebuilt from both ranks and the run ends as the
-    uninterrupted one (to 1e-9: MUMPS's parallel LU is not bit-reproducible)."""
+    checkpoint at step 60, the crack-path table (and a nodal crack's enrichment registry) is rebuilt
+    from both ranks and the run ends as the uninterrupted one (to 1e-9: MUMPS's parallel LU is not
+    bit-reproducible)."""
     import meshio
 
-    case = band_case()
+    case = band_case() if kinematics == "elemental" else nodal_band_case()
     case["output"] = {"points": True, "picture": True, "vtk": True, "vtk_every": 33, "checkpoint_every": 30}
     band = case_file(case, tmp_path / "band.toml", tmp_path / "serial")
 

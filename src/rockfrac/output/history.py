@@ -141,14 +141,14 @@ class History:
         if not np.any(f0) and not np.any(u0):
             return np.zeros(self.n_w)
         self.model.begin_step()
-        return self.model.assemble(u0, u0, f0).f_int[: self.n_w].copy()
+        return self.model.gather(self.model.assemble(u0, u0, f0).f_int)[: self.n_w].copy()  # whole, on ranks
 
     def after_cuts(self, u: np.ndarray, f_ext: np.ndarray) -> None:  # f_ext: shapes only (f_int is the use)
         """The internal forces of the committed system at u (cells cut at the commit included), which
         start the next step's work (models whose cracks cut cells; an assembly per step)."""
         if self.cuts:
             self.model.begin_step()
-            self.f_post = self.model.assemble(u, u, f_ext).f_int[: self.n_w].copy()
+            self.f_post = self.model.gather(self.model.assemble(u, u, f_ext).f_int)[: self.n_w].copy()
 
     @property
     def notes(self) -> list[str]:

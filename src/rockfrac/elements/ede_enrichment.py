@@ -15,6 +15,11 @@ the displacement does not change. The q of a node without enrichment is held at 
 A crack that reaches a loaded boundary splits the load of the edge it crosses between the two sides
 (:meth:`EnrichmentRegistry.surface_forces`); the q of a node whose displacement is prescribed is
 prescribed too (a crack does not open across a support).
+
+On several MPI ranks every rank keeps the same registry: it numbers the nodes of every rank's cells,
+and each cut is entered on every rank when its owner announces it (the sides its crack crosses, the
+traces on them, the cell's nodes), in the serial order, so that cracks, tips and enriched nodes are
+the same everywhere; a rank computes the boundary loads' share of its own cut cells only.
 """
 
 from __future__ import annotations

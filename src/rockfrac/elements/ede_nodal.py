@@ -24,7 +24,8 @@ In a general 3D body (tet4, hex8) the crack is a plane in each cell (its polygon
 quadrature, rockfrac.fem.cut_cell.cut_cell_3d) and the law acts isotropically in that plane
 (rockfrac.laws.embedded_penalty.crack_return_3d); a crack continued from a cut neighbour stays in
 that neighbour's plane (a 3D nodal crack grows in its plane), so that neighbouring cells share the
-crack's trace on their common face. One process.
+crack's trace on their common face. On several MPI ranks the enrichment registry is the same on
+every rank (rockfrac.elements.ede_enrichment: cuts announced in the serial order).
 """
 
 from __future__ import annotations

@@ -194,8 +194,8 @@ class EnrichmentRegistry:
             for e in np.flatnonzero(g.cut_serial >= 0).tolist():
                 mine.append((int(g.cut_serial[e]), int(g.cell_ids[e]), int(g.crack_of_cell[e]), g.crossed_sides(e),
                              tuple(int(v) for v in g.cells[e]), (gi, e)))
-        cuts = sorted(c if k == self.rank else c[:5] + (None,)  # another rank's cut has no owner here
-                      for k, part in enumerate(self.exchange.allgather(mine)) for c in part)
+        cuts = sorted((c if k == self.rank else c[:5] + (None,)  # another rank's cut has no owner here
+                       for k, part in enumerate(self.exchange.allgather(mine)) for c in part), key=lambda c: c[0])
         self.cut = {gcell: ((own[0], own[1], crack) if own is not None else (-1, -1, crack))
                     for _, gcell, crack, _, _, own in cuts}
         self.cut_sides = {gcell: [(tuple(int(v) for v in n), np.asarray(t)) for n, t in sides]

@@ -160,6 +160,16 @@ def nodal_gravity_case() -> dict:
                        {"name": "push", "steps": 6, "gravity": [0.0, -2 * g], "displacement": {"top": {"y": -5e-4}}}]}
 
 
+def nodal_tets_case(max_steps: int = 90) -> dict:
+    """examples/embedded_3d/band_tets on 8 x 16 x 1 (768 tetrahedra): a nodal band tracked through
+    the tetrahedra of both ranks, one plane grown cell by cell from the seed."""
+    case = tomllib.loads((ROOT / "examples" / "embedded_3d" / "band_tets.toml").read_text())
+    case["mesh"].update(nx=8, ny=16, nz=1)
+    case["loading"]["max_steps"] = max_steps
+    case["output"] = {"vtk": False, "picture": False}
+    return case
+
+
 def nodal_plane_case() -> dict:
     """A plane given across a box of tetrahedra with nodal cracks (tests/test_nodal_3d.py), confined,
     then sheared along it under path control (the plane's cells cut in the serial order on every rank)."""
@@ -258,6 +268,7 @@ CASES = {
     "band_nodal": nodal_band_case,
     "nodal_gravity": nodal_gravity_case,
     "plane_nodal_3d": nodal_plane_case,
+    "band_nodal_tets": nodal_tets_case,
     # the band tracked through one layer of hexahedra of a general 3D body (3D crack fronts across ranks)
     "band_3d_local": lambda: band_case("local", 60, element="hex8"),
     "band_3d_nonlocal": lambda: band_case("nonlocal", 60, element="hex8"),
@@ -299,7 +310,7 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> N
 CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp"}
 
 
-SLOW = {"breakout_initial", "band_3d_nonlocal"}  # on 2 ranks only (20 s a run; band_3d_local has 3)
+SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets"}  # on 2 ranks only (20-30 s a run)
 
 
 @pytest.mark.parametrize("name, n", [(name, n) for name in sorted(CASES) for n in (2, 3)

@@ -301,3 +301,20 @@ def test_in_situ_stress_with_a_plane_across_is_an_equilibrium_in_3d(tmp_path, el
     without = residual + share
     without[model.dirichlet] = 0.0
     assert np.abs(without).max() > 1e-3 * P * (W / 4) ** 2
+
+
+def test_the_eight_point_tetrahedron_rule_is_of_degree_three():
+    """TET_RULE_3 (a cut hexahedron's sides): positive weights summing to the volume, points inside,
+    and every monomial of the barycentric coordinates up to degree 3 integrated exactly
+    (int l1^a l2^b l3^c l4^d dV = 3! a! b! c! d! / (a + b + c + d + 3)! V)."""
+    import itertools
+
+    from rockfrac.fem.cut_cell import TET_RULE_3
+
+    points, weights = TET_RULE_3
+    assert (weights > 0).all() and weights.sum() == pytest.approx(1.0, abs=1e-15)
+    assert (points > 0).all() and np.allclose(points.sum(axis=1), 1.0, atol=1e-15)
+    for powers in itertools.product(range(4), repeat=4):
+        if sum(powers) <= 3:
+            exact = 6 * np.prod([math.factorial(k) for k in powers]) / math.factorial(sum(powers) + 3)
+            assert weights @ np.prod(points ** np.array(powers), axis=1) == pytest.approx(exact, abs=1e-15)

@@ -50,7 +50,7 @@ from rockfrac.laws.mohr_coulomb_softening import strengths
 
 #: the most quadrature points of a cut cell (rockfrac.fem.cut_cell): its sides' and its crack's, and
 #: the sides of the cell the crack crosses (edges in 2D, faces in 3D), by cell type
-SIDE_POINTS = {"quad4": 12, "tri3": 12, "tet4": 2, "hex8": 256}
+SIDE_POINTS = {"quad4": 12, "tri3": 12, "tet4": 2, "hex8": 512}
 CRACK_POINTS = {"quad4": 3, "tri3": 3, "tet4": 12, "hex8": 36}
 CROSSED = {"quad4": (2, 2, 1), "tri3": (2, 2, 1), "tet4": (4, 3, 2), "hex8": (6, 4, 2)}  # sides, nodes, trace
 

@@ -121,9 +121,19 @@ FACES: dict[str, list[tuple[int, ...]]] = {
     "tet4": [(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)],
     "hex8": [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)],
 }
-_KEAST = 0.1381966011250105  # the four-point rule of a tetrahedron (degree 2), weights 1/4 of its volume
-TET_RULE = np.array([[1 - 3 * _KEAST, _KEAST, _KEAST, _KEAST], [_KEAST, 1 - 3 * _KEAST, _KEAST, _KEAST],
-                     [_KEAST, _KEAST, 1 - 3 * _KEAST, _KEAST], [_KEAST, _KEAST, _KEAST, 1 - 3 * _KEAST]])
+
+
+def _tet_orbit(a: float) -> np.ndarray:
+    """The four points (barycentric) of a tetrahedron's orbit (1 - 3a, a, a, a)."""
+    return np.array([[1 - 3 * a, a, a, a], [a, 1 - 3 * a, a, a], [a, a, 1 - 3 * a, a], [a, a, a, 1 - 3 * a]])
+
+
+#: an eight-point rule of a tetrahedron, degree 3, positive weights (fractions of its volume): two
+#: orbits of four points, solved from the moments of degree 2 and 3 (tests/test_nodal_3d.py checks
+#: every monomial up to degree 3). A trilinear cell's gradients against a linear stress, or its shape
+#: functions against a uniform body force, are of degree 3.
+_TA, _TB, _TW = 0.10190354747154126, 0.32771827152905775, 0.10161867104040027
+TET_RULE_3 = (np.vstack([_tet_orbit(_TA), _tet_orbit(_TB)]), np.r_[np.full(4, _TW), np.full(4, 0.25 - _TW)])
 _A, _B = 0.445948490915965, 0.091576213509771  # the six-point rule of a triangle (degree 4)
 TRIANGLE_RULE_6 = (np.array([[_A, _A, 1 - 2 * _A], [_A, 1 - 2 * _A, _A], [1 - 2 * _A, _A, _A],
                              [_B, _B, 1 - 2 * _B], [_B, 1 - 2 * _B, _B], [1 - 2 * _B, _B, _B]]),
@@ -156,8 +166,8 @@ def _tetrahedra(corners: np.ndarray) -> np.ndarray:
 def cut_cell_3d(ref: ReferenceElement, xe: np.ndarray, point: np.ndarray, normal: np.ndarray) -> CutCell:
     """The quadrature of a convex 3D cell with nodes xe (k, 3) [m] cut by the plane through ``point``
     with unit ``normal``: each side's points (a tetrahedron's sides strain uniformly: one point each,
-    at its centroid with its volume; a hexahedron's: the side's hull fanned into tetrahedra, four
-    points each) and the crack's polygon fanned into triangles (three points each for a tetrahedron,
+    at its centroid with its volume; a hexahedron's: the side's hull fanned into tetrahedra, eight
+    points each, of degree 3) and the crack's polygon fanned into triangles (three points each for a tetrahedron,
     whose shape functions are linear on it; six, degree 4, for a hexahedron). ``crack_edges`` here
     lists the faces of the cell (indices into FACES) the crack crosses."""
     edges = EDGES[ref.name]
@@ -173,9 +183,10 @@ def cut_cell_3d(ref: ReferenceElement, xe: np.ndarray, point: np.ndarray, normal
             ws.append(np.array([vol.sum()]))
             sides.append(np.array([side]))
         else:
-            xs.append(np.einsum("qc,tci->tqi", TET_RULE, tets).reshape(-1, 3))
-            ws.append(np.repeat(vol / 4.0, 4))
-            sides.append(np.full(4 * tets.shape[0], side))
+            rule, rule_w = TET_RULE_3
+            xs.append(np.einsum("qc,tci->tqi", rule, tets).reshape(-1, 3))
+            ws.append((vol[:, None] * rule_w[None, :]).ravel())
+            sides.append(np.full(rule_w.size * tets.shape[0], side))
     x = np.vstack(xs)
     poly = plane_polygons(xe[None], edges, np.asarray(point, float)[None], np.asarray(normal, float)[None])[0][0]
     poly = poly[np.isfinite(poly).all(axis=1)]

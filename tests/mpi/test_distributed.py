@@ -359,6 +359,20 @@ def test_distributed_amg_on_a_plastic_3d_cylinder(tmp_path, linear):
     assert_same_history(mpirun(2, "history", case, tmp_path), ser)
 
 
+@pytest.mark.parametrize("linear", ["petsc-gamg", "petsc-hypre"])
+def test_nodal_cracks_with_an_amg_preconditioner_give_the_serial_history(tmp_path, linear):
+    """The nodal band on 2 ranks with GMRES and AMG: the enrichments are the second field of PETSc's
+    Schur field split (as RP multipliers are), and the run gives the serial direct history."""
+    case = nodal_band_case()
+    case["loading"]["max_steps"] = 60
+    ser = serial_history(case)
+    assert ser["path"].sum() >= 1  # cells cut: the enrichments are in the system
+    case["solver"] = {"linear": linear}
+    par = mpirun(2, "history", case, tmp_path)
+    assert linear in str(par["solver_line"])
+    assert_same_history(par, ser)
+
+
 @pytest.mark.parametrize("n", [2, 3])
 def test_global_matrix_ownership_and_ghosts(tmp_path, n):
     """The 2- and 3-rank tangent, gathered, equals the serial one (plastic surfaces included), every

@@ -160,7 +160,7 @@ def nodal_gravity_case() -> dict:
                        {"name": "push", "steps": 6, "gravity": [0.0, -2 * g], "displacement": {"top": {"y": -5e-4}}}]}
 
 
-def nodal_tets_case(max_steps: int = 90) -> dict:
+def nodal_tets_case(max_steps: int = 60) -> dict:
     """examples/embedded_3d/band_tets on 8 x 16 x 1 (768 tetrahedra): a nodal band tracked through
     the tetrahedra of both ranks, one plane grown cell by cell from the seed."""
     case = tomllib.loads((ROOT / "examples" / "embedded_3d" / "band_tets.toml").read_text())
@@ -310,7 +310,7 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> N
 CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp"}
 
 
-SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets"}  # on 2 ranks only (20-30 s a run)
+SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets", "plane_nodal_3d"}  # on 2 ranks only
 
 
 @pytest.mark.parametrize("name, n", [(name, n) for name in sorted(CASES) for n in (2, 3)
@@ -359,10 +359,10 @@ def test_distributed_amg_on_a_plastic_3d_cylinder(tmp_path, linear):
     assert_same_history(mpirun(2, "history", case, tmp_path), ser)
 
 
-@pytest.mark.parametrize("linear", ["petsc-gamg", "petsc-hypre"])
-def test_nodal_cracks_with_an_amg_preconditioner_give_the_serial_history(tmp_path, linear):
-    """The nodal band on 2 ranks with GMRES and AMG: the enrichments are the second field of PETSc's
-    Schur field split (as RP multipliers are), and the run gives the serial direct history."""
+def test_nodal_cracks_with_an_amg_preconditioner_give_the_serial_history(tmp_path, linear="petsc-gamg"):
+    """The nodal band on 2 ranks with GMRES and GAMG: the enrichments are the second field of PETSc's
+    Schur field split (as RP multipliers are), and the run gives the serial direct history (BoomerAMG
+    too, measured: the same split, not repeated here)."""
     case = nodal_band_case()
     case["loading"]["max_steps"] = 60
     ser = serial_history(case)

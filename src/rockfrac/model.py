@@ -155,20 +155,18 @@ class Model:
         return versions or None
 
     def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray) -> np.ndarray:
-        """The enriched unknowns' share (n_dofs,) of tractions [Pa] on boundary sides (m, s) (edges in 2D,
-        faces in 3D), uniform (m, dim) or at the sides' nodes (m, s, dim)."""
-        out = np.zeros(self.n_dofs)
-        for g in self.groups:
-            f = g.enriched_surface_forces(edges, tractions, self.n_dofs)
-            if f is not None:
-                out += f
-        return out
+        """The enriched unknowns' share (n_dofs,) of tractions [Pa] at the nodes (m, s, dim) of boundary
+        sides (m, s) (edges in 2D, faces in 3D)."""
+        return self._groups_sum([g.enriched_surface_forces(edges, tractions, self.n_dofs) for g in self.groups])
 
     def enriched_body_forces(self, body: dict[str, np.ndarray]) -> np.ndarray:
         """The enriched unknowns' share (n_dofs,) of body forces [N/m^3] per region (density x g)."""
+        return self._groups_sum([g.enriched_body_forces(body, self.n_dofs) for g in self.groups])
+
+    def _groups_sum(self, parts: list[np.ndarray | None]) -> np.ndarray:
+        """The sum (n_dofs,) of the groups' vectors (None: a group without any)."""
         out = np.zeros(self.n_dofs)
-        for g in self.groups:
-            f = g.enriched_body_forces(body, self.n_dofs)
+        for f in parts:
             if f is not None:
                 out += f
         return out

@@ -94,9 +94,9 @@ class ElementGroup(ABC):
         return None
 
     def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray | None:
-        """The enriched unknowns' share (n_dofs,) of tractions [Pa] on boundary sides (m, s), uniform
-        (m, dim) or at their nodes (m, s, dim) (a crack crossing a loaded boundary splits its load
-        between the two sides); None: no share."""
+        """The enriched unknowns' share (n_dofs,) of tractions [Pa] at the nodes (m, s, dim) of boundary
+        sides (m, s) (a crack crossing a loaded boundary splits its load between the two sides); None:
+        no share."""
         return None
 
     def enriched_body_forces(self, body: dict[str, np.ndarray], n_dofs: int) -> np.ndarray | None:

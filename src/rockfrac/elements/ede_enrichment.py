@@ -260,10 +260,10 @@ class EnrichmentRegistry:
     # -- loads on a boundary the crack crosses --------------------------------------------------
     def surface_forces(self, sides: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray:
         """The q part (n_dofs,) of the nodal forces of tractions [Pa] on boundary sides (m, 2) edges in
-        2D, (m, 3|4) faces in 3D (mesh nodes), uniform per side (m, dim) or at the side's nodes (m, s,
-        dim), interpolated between them: on a side a crack crosses, node a's q takes (H_other - H_a)
-        times the integral of N_a t over the part of the side across the crack from a (the group's
-        :meth:`split_side`); the rest is zero."""
+        2D, (m, 3|4) faces in 3D (mesh nodes), given at the sides' nodes (m, s, dim) and interpolated
+        between them: on a side a crack crosses, node a's q takes (H_other - H_a) times the integral
+        of N_a t over the part of the side across the crack from a (the group's :meth:`split_side`);
+        the rest is zero."""
         out = np.zeros(n_dofs)
         if not self.cut or sides.size == 0:
             return out
@@ -279,8 +279,7 @@ class EnrichmentRegistry:
                 if key not in load or len(self.side_cells.get(key, [])) != 1:
                     continue  # not a loaded boundary side
                 order, t = load[key]
-                at_nodes = (np.broadcast_to(t, (len(nodes), self.dim)) if t.ndim == 1
-                            else t[[order.index(v) for v in nodes]])  # in the order of ``nodes``
+                at_nodes = t[[order.index(v) for v in nodes]]  # in the order of ``nodes``
                 for node, weights in g.split_side(e, nodes).items():
                     i = int(self.index(np.array(node)))
                     if not self.enriched[i] or self.crack_of[i] != crack:

@@ -43,8 +43,8 @@ class Stage:
     source: str = ""  # the input that sets this stage's loads, named in a failure ("[loading] confinement")
     dirichlet: np.ndarray | None = None  # the stage's prescribed dofs (sorted)
     # tractions on boundary sides at the end of the stage, (m, s) mesh nodes (edges in 2D, faces in 3D)
-    # and their values at those nodes (m, s, dim) [Pa] (or uniform per side, (m, dim)): what a crack
-    # with enriched unknowns needs to split a boundary's load between its two sides
+    # and their values at those nodes (m, s, dim) [Pa]: what a crack with enriched unknowns needs to
+    # split a boundary's load between its two sides
     surface_edges: np.ndarray | None = None
     surface_tractions: np.ndarray | None = None
     # the same at t = 0, on the first stage (the in-situ tractions of the forces f0 it starts from)

@@ -101,7 +101,8 @@ def test_cohesive_surfaces_on_every_edge_separate_with_gc_per_unit_length(tmp_pa
     horizontal row of surfaces separates completely (no traction left, opening beyond delta_c; the
     run ends there by its stop rule), the vertical ones stay shut, and the energy dissipated is G_c
     times the separated length W: the law's own account to round-off, the work of the forces to the
-    time integration's accuracy (1.5 %)."""
+    time integration's accuracy (1.5 %). The block has then broken into two fragments of four cells
+    each (history.csv's n_fragments, fragments.csv)."""
     width, gc, sigma_c = 0.04, 100.0, 1e6
     coh = {"law": "bilinear", "form": form, "where": "all", "sigma_c": sigma_c, "Gc": gc}
     if form == "ep":
@@ -123,6 +124,13 @@ def test_cohesive_surfaces_on_every_edge_separate_with_gc_per_unit_length(tmp_pa
     assert np.abs(p["jump_n"][last & ~horizontal]).max() < 1e-9
     assert h["D_surface_law"][-1] == pytest.approx(gc * width, rel=1e-9)
     assert h["D_dissipated"][-1] == pytest.approx(gc * width, rel=1.5e-2)
+    assert h["n_fragments"][0] == 1 and h["n_fragments"][-1] == 2
+    assert h["separated"][0] == 0.0 and h["separated"][-1] == pytest.approx(width, rel=1e-12)
+    first = int(np.argmax(h["n_fragments"] == 2))
+    assert r[first] < 1e-2 * r.max()  # the last pair lets go (1 % of its strength) only when the load is gone
+    f = read_csv(tmp_path / "fragments.csv")
+    assert list(f["cells"]) == [4, 4] and np.allclose(f["size"], width * 0.01, rtol=1e-12)
+    assert sorted(f["y"]) == pytest.approx([0.005, 0.015], rel=1e-12)
 
 
 def test_implex_extrapolates_only_between_steps_of_the_same_control(tmp_path):

@@ -1,4 +1,4 @@
-"""``rockfrac run``: a case file in, history.csv / points.csv / case.toml / run.log out.
+"""``rockfrac run``: a case file in, history.csv / points.csv / fragments.csv / case.toml / run.log out.
 
 The run composes the observers of :mod:`rockfrac.output.observers` around the stepping: the
 history (with its generic quantities, :mod:`rockfrac.output.history`), the point records, the
@@ -37,6 +37,7 @@ from rockfrac.output.observers import (
     Quiet,
     RunLog,
     Step,
+    FragmentsCsv,
     StopRules,
     VtkSeriesWriter,
     position_from_arrays,
@@ -47,8 +48,8 @@ from rockfrac.solve.stepping import Position, RunResult, StepInfo, SteppingOptio
 from rockfrac.solve.stop import stop_on_signals
 from rockfrac.values import given
 
-OUTPUTS = ("history.csv", "points.csv", "case.toml", "run.log", checkpoint.FILE, checkpoint.FILE + ".tmp",
-           checkpoint.LEGACY, "vtk", "crack_map.png")  # what a run writes into its folder
+OUTPUTS = ("history.csv", "points.csv", "fragments.csv", "case.toml", "run.log", checkpoint.FILE,
+           checkpoint.FILE + ".tmp", checkpoint.LEGACY, "vtk", "crack_map.png")  # what a run writes into its folder
 PENALTY_ACCURACY = 0.01  # rockfrac run warns when an EP penalty's artificial compliance may exceed this
 
 
@@ -292,6 +293,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             extra = [n for g in built.cohesives for n in g.law.record_names if n not in columns]
             extra += ["gamma", "zeta", "c_p"] if general else []
             observers.append(PointsCsv(out / "points.csv", columns + list(dict.fromkeys(extra)), keep))
+        if lead and history.fragments is not None:
+            observers.append(FragmentsCsv(out / "fragments.csv", lambda: history.pieces))
         if case.output.vtk:  # an MPI run: one piece per rank and rank 0's .pvtu joining them
             from rockfrac.output.fields import step_output, step_piece
 

@@ -281,6 +281,7 @@ class Bilinear(TractionLaw):
     mode_slot = S_MODE
     dgamma_slot = S_DGAMMA
     record_names = ("kappa", "strength")
+    tensile_record = "strength"
     ep_kernel = ep_points
     rp_kernel = rp_points
     trial_kernel = trial_return

@@ -72,6 +72,9 @@ class Law3D:
     def yield_values(self, state: np.ndarray) -> np.ndarray:
         return self.planar.yield_values(planar_states(state))
 
+    def separated(self, state: np.ndarray) -> np.ndarray:
+        return self.planar.separated(planar_states(state))
+
     def dissipation(self, state: np.ndarray) -> np.ndarray:
         return self.planar.dissipation(planar_states(state))
 

@@ -42,6 +42,8 @@ from rockfrac.values import Section
 S_TT, S_TN, S_UPT, S_UPN = 0, 1, 2, 3  # the common state slots
 COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
 MODE_PLASTIC = 1.0
+SEPARATED = 1e-2  # a point left with less than this fraction of its virgin tensile strength is separated
+# (the bilinear law reaches zero at delta_c; the paper's hyperbolic softening only tends to it)
 
 
 @inner
@@ -81,6 +83,7 @@ class TractionLaw(ABC):
     mode_slot: ClassVar[int]
     dgamma_slot: ClassVar[int]  # where the state keeps the last update's plastic multiplier increment
     record_names: ClassVar[tuple[str, ...]]  # the law's per-point output quantities (strengths...)
+    tensile_record: ClassVar[str]  # the record that is the point's tensile strength [Pa] (0: separated)
     ep_kernel: ClassVar[Any]  # the compiled ep_points(..., p, ...) of the module docstring
     rescue_kernel: ClassVar[Any] = None  # ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new,
     # fe, ke, status): the EP points whose return failed, solved another way (None: the law has none)
@@ -162,3 +165,9 @@ class TractionLaw(ABC):
     def initial_state(self, n: int) -> np.ndarray:
         """Virgin states (n, n_state)."""
         return np.zeros((n, self.n_state))
+
+    def separated(self, state: np.ndarray) -> np.ndarray:
+        """(n,) True where a point has lost its tensile strength (down to SEPARATED of its virgin one):
+        the surface is a crack there, its two sides held only by contact and friction."""
+        virgin = float(self.records(self.initial_state(1))[self.tensile_record][0])
+        return self.records(state)[self.tensile_record] <= SEPARATED * virgin

@@ -16,6 +16,10 @@
   averaged traction, does not: see README); ``D_viscous`` (only with a viscous regularisation,
   [cohesive] viscosity): the part of D_dissipated the regularisation added, not the law's;
 - the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
+- ``n_fragments`` (a mesh with cohesive surfaces): the pieces the surfaces that lost their tensile
+  strength have cut the body into (:mod:`rockfrac.output.fragments`; 1 while it is whole), and
+  ``separated``: the size of those surfaces [m^2 in 3D; m in 2D and per unit thickness for the
+  plane-strain hex8, as the forces];
 - for the paper's [loading] form, ``u_axial`` (top shortening) and ``F_axial`` (top reaction,
   positive in compression).
 """
@@ -27,15 +31,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from rockfrac.elements.base import ElementGroup
+from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.model import Model
+from rockfrac.output.fragments import Fragments, Pieces
 from rockfrac.solve.stepping import StepInfo
 
 BASE = ["step", "stage", "control", "load_factor"]
 ALIASES = ["u_axial", "F_axial"]
 COUNTS = ["newton_iterations", "cutbacks"]
-CRACK = ["jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic", "det_ratio", "n_localized", "bulk_plastic"]
+CRACK = ["jump_p_norm", "chi", "c", "tan_phi", "tan_psi", "n_plastic", "det_ratio", "n_localized", "bulk_plastic",
+         "n_fragments", "separated"]
 ENERGY = ["W_external", "E_elastic", "D_dissipated", "energy_error", "D_surface_law"]
 AXES = "xyz"
 
@@ -120,6 +127,9 @@ class History:
         extra = [m for m in self.means if m not in CRACK]
         self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
         self.viscous = model.reduce_any(any(g.viscous_energy() is not None for g in model.groups))
+        self.surfaces = [g for g in model.groups if isinstance(g, (CohesiveEP, CohesiveRP))]
+        self.fragments = Fragments(mesh) if mesh.interfaces.shape[0] else None
+        self.pieces: Pieces | None = None  # the fragments at the last row
         # a model whose cracks cut cells as they grow (nodal embedded cracks): each cut changes the
         # discrete system at the committed displacement, and the internal forces of the new one,
         # not those the step converged to, start the next step's work
@@ -177,6 +187,12 @@ class History:
         if self.axial_dofs is not None:
             row.update(axial_columns(info.u, info.f_int, self.axial_dofs, self.thickness))
         row.update(crack_columns(self.model.groups, rec, self.means, self.model))
+        if self.fragments is not None:
+            mine = [g.separated() for g in self.surfaces]
+            pairs = np.concatenate([p for p, _ in mine] + [np.zeros((0, 2), dtype=np.int64)])
+            self.pieces = self.fragments.pieces(np.concatenate(self.model.allgather(pairs)))
+            row["n_fragments"] = self.pieces.count
+            row["separated"] = self.model.reduce_sum(sum(a for _, a in mine)) / self.thickness
         row["time"] = info.stage_index + info.load_factor
         u = info.u[: self.n_u].reshape(-1, self.dim)
         f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)

@@ -15,6 +15,7 @@ import numpy as np
 from rockfrac.model import Model
 from rockfrac.output import checkpoint
 from rockfrac.output.csvout import CsvWriter
+from rockfrac.output.fragments import Pieces
 from rockfrac.solve.stepping import Position, StepInfo, StopRun
 
 
@@ -65,6 +66,28 @@ class PointsCsv(Observer):
 
     def close(self) -> None:
         self.writer.close()
+
+
+class FragmentsCsv(Observer):
+    """fragments.csv: the pieces of the last converged step (fragment 0 the largest), each with its
+    cells, size [m^2 in 2D, m^3 in 3D] and centroid [m]; written when the run ends."""
+
+    def __init__(self, path: Path, pieces: Callable[[], Pieces | None]):
+        self.path, self.pieces, self.last = path, pieces, 0
+
+    def step(self, step: Step) -> None:
+        self.last = step.info.step
+
+    def close(self) -> None:
+        p = self.pieces()
+        if p is None:
+            return
+        rec = {"fragment": np.arange(p.count), "cells": p.cells, "size": p.size,
+               **{"xyz"[a]: p.centroid[:, a] for a in range(p.centroid.shape[1])},
+               "step": np.full(p.count, self.last)}
+        writer = CsvWriter(self.path, list(rec))
+        writer.write_many(rec, p.count)
+        writer.close()
 
 
 class VtkSeriesWriter(Observer):

@@ -77,6 +77,23 @@ def test_a_given_crack_slides_rigidly_to_the_closed_form(tmp_path, mesh):
     assert np.ptp(jt) < 5e-3 * np.abs(jt).max()
 
 
+def test_a_given_crack_through_a_node_across_two_regions_is_one_crack(tmp_path):
+    """A crack that starts in the weak region and ends exactly at a node of the right edge: the
+    line is moved off the node (by 2e-7 cell sizes) for the cells of both regions alike, so the
+    pieces cut in each region meet on the sides between them and join into one crack, which slides
+    to p w. (Moved in one region only, the two pieces' traces missed each other by 3e-10 m: two
+    cracks, locked where they met, the force ending at 1.6 p w on the 40 x 80 band.)"""
+    case = crack_case(dict(block(16, 32), inclusion=[0.0, 0.005, W / 16, 0.02]))  # the first column's weak
+    case["embedded"]["cracks"] = [{"points": [[0.0, 0.0132], [W, 0.0725]], "c_p": 5e3}]  # y = 72.5 mm: a node
+    s = run_case(parse_case(case), tmp_path / "o")
+    h = read_csv(tmp_path / "o" / "history.csv")
+    registry = next(g for g in s.built.model.groups if hasattr(g, "registry")).registry
+    assert registry.crack_count() == 1
+    assert {len(g.localized()) > 0 for g in s.built.embeddeds} == {True}  # both regions are cut
+    assert s.result.completed
+    assert h["F_axial"][-1] == pytest.approx(P * W, rel=5e-3)
+
+
 def test_two_cracks_each_with_its_own_enrichment(tmp_path):
     """Two given parallel cracks 8 mm apart, the second four times stronger: each cuts its cells with
     an enrichment of its own; the first slides to the residual (p w within 0.5 %) while the second

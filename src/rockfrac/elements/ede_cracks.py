@@ -53,6 +53,27 @@ def clip_to_cell(xe: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, f
     return s0, s1
 
 
+def _off_the_nodes(a: np.ndarray, b: np.ndarray, groups: list[tuple[np.ndarray, np.ndarray]]
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The segment a-b, moved off the nodes (module doc) if it passes within NODE_TOL cell sizes of
+    a node of any group's cells ((corners (n_el, k, 2), sizes (n_el,)) per group): every group then
+    cuts its cells with the same line, so that the crack's traces on the sides between two regions
+    agree and its pieces join there."""
+    length = float(np.linalg.norm(b - a))
+    t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
+    close, smallest = False, np.inf
+    for xe, size in groups:
+        side, along = (xe - a) @ n, (xe - a) @ t
+        span = (along.max(axis=1) >= 0.0) & (along.min(axis=1) <= length)
+        if span.any():
+            close |= bool(np.min(np.abs(side[span]) / size[span, None]) < NODE_TOL)
+            smallest = min(smallest, float(size[span].min()))
+    if not close:
+        return a, b
+    shift = 2.0 * NODE_TOL * smallest
+    return a + shift * n, b + shift * n
+
+
 def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, float]:
     """Localize every EDE cell the polyline ``points`` (n, 2) [m] crosses (module doc); returns the
     number of cells cut and the fraction of the polyline's length that lies in EDE cells.
@@ -64,23 +85,22 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
     total = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     covered = 0.0
     cut = 0
-    for g, conn, ids in zip(paths.groups, paths.full_conn, paths.full_ids):
-        xe = paths.nodes[conn][..., :2]
+    cells = []  # per group: its cells' corners (every rank's), sizes, and this rank's index of each
+    for g, conn in zip(paths.groups, paths.full_conn):
         size = np.zeros(conn.shape[0])
         for index, own in paths.exchange.allgather((g.serial_index, np.sqrt(g.wdet.sum(axis=1)))):
             size[index] = own
         local = np.full(conn.shape[0], -1)
         local[g.serial_index] = np.arange(g.serial_index.size)
+        cells.append((paths.nodes[conn][..., :2], size, local))
+    segments = [_off_the_nodes(a, b, [(xe, size) for xe, size, _ in cells]) for a, b in zip(pts[:-1], pts[1:])]
+    for g, ids, (xe, size, local) in zip(paths.groups, paths.full_ids, cells):
         chords: dict[int, list[np.ndarray]] = {}
-        for a, b in zip(pts[:-1], pts[1:]):
+        for a, b in segments:
             length = float(np.linalg.norm(b - a))
             t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
             side, along = (xe - a) @ n, (xe - a) @ t  # (n_el, k): across and along the segment
             span = (along.max(axis=1) >= 0.0) & (along.min(axis=1) <= length)
-            if span.any() and np.min(np.abs(side[span]) / size[span, None]) < NODE_TOL:
-                shift = 2.0 * NODE_TOL * float(size[span].min())  # off the nodes (module doc)
-                a, b = a + shift * n, b + shift * n
-                side = side - shift
             near = np.flatnonzero((side.min(axis=1) <= 0.0) & (side.max(axis=1) >= 0.0) & span)
             for cell in near.tolist():  # the cells the segment's line crosses within its length only
                 s = clip_to_cell(xe[cell], a, b)

@@ -12,8 +12,10 @@ under load control with the viscous regularisation ``[cohesive] viscosity`` inst
 snap-back releases goes to D_viscous, reported); RP has no such fallback (its multipliers have no
 elastic jump to extrapolate). Reports per run: internal edges
 (interface points), steps, Newton iterations per step, the step where IMPL-EX took over, wall time,
-peak load, the dissipated energy (the work of the forces, and the law's own account) and how the run
-ended. Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
+peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
+body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
+n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
+run followed a snap-back), and how the run ended. Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
 """
 
 from __future__ import annotations
@@ -140,7 +142,10 @@ def main() -> None:
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
-                   "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended}
+                   "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
+                   "pieces": int(h["n_fragments"][-1]), "separated_m": float(h["separated"][-1]),
+                   "u_end_over_peak": float(h[reaction.replace("R_", "u_")][-1]
+                                            / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
             record["runs"][f"{variant} {steps}"] = rec
             print(variant, steps, rec, flush=True)
     order = {"ep": 0, "ep viscous": 1, "rp": 2}
@@ -151,11 +156,14 @@ def main() -> None:
                      rec["nominal_steps"], rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
                      rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}",
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
-                     f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec["ended"],
+                     f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec.get("pieces", "-"),
+                     f"{1e3 * rec['separated_m']:.1f}" if "separated_m" in rec else "-",
+                     f"{rec['u_end_over_peak']:.2f}" if "u_end_over_peak" in rec else "-", rec["ended"],
                      f"{rec['date']}, {rec['load_average']:.2f}"])
     lines = markdown_table(["form", "nominal steps", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
-                            "D (law) [J/m]", "D (viscous) [J/m]", "ended", "ran (date, load)"], rows)
+                            "D (law) [J/m]", "D (viscous) [J/m]", "pieces", "separated [mm]",
+                            "u end / u at peak", "ended", "ran (date, load)"], rows)
     publish(name, record, lines)
 
 

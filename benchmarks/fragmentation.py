@@ -82,6 +82,8 @@ def main() -> None:
     ap.add_argument("--size", type=float, default=None, help="element size [m] (disc 0.0009, grains 0.004)")
     ap.add_argument("--variants", nargs="+", default=["ep", "ep viscous", "rp"])
     ap.add_argument("--steps", type=int, nargs="+", default=[100, 200])
+    ap.add_argument("--displacement", type=float, default=None,
+                    help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
     args = ap.parse_args()
     from rockfrac.case.schema import parse_case
     from rockfrac.output.csvout import read_csv
@@ -93,6 +95,8 @@ def main() -> None:
     base = disc_case(size, runs) if args.specimen == "disc" else grains_case(size, runs)
     base["output"] = {"vtk": False, "picture": False, "points": False}
     visc, reaction = VISCOSITY[args.specimen], REACTION[args.specimen]
+    if args.displacement is not None:  # the same relaxation time per metre of loading: a stage is one unit of
+        visc *= (1e-4 if args.specimen == "disc" else 1e-3) / args.displacement  # pseudo-time
     name = "fragmentation" if args.specimen == "disc" else "fragmentation_grains"
     record: dict = {"machine": machine(), "load_start": os.getloadavg(), "specimen": args.specimen, "size": size,
                     "runs": {}}
@@ -100,7 +104,9 @@ def main() -> None:
     if saved.exists():  # a rerun of some variants keeps the others' rows (each run carries its own date/load)
         old = json.loads(saved.read_text())
         if old.get("size") == size:
-            record["runs"] = {k: v for k, v in old.get("runs", {}).items() if "variant" in v}
+            default = 1e-4 if args.specimen == "disc" else 1e-3  # the rows before the displacement was a choice
+            record["runs"] = {f"{v['variant']} {v['nominal_steps']} {v.setdefault('displacement_m', default):g}": v
+                              for v in old.get("runs", {}).values() if "variant" in v}
     for variant in args.variants:
         form = variant.split()[0]
         for steps in args.steps:
@@ -108,6 +114,9 @@ def main() -> None:
             sections = d["cohesive"] if isinstance(d["cohesive"], list) else [d["cohesive"]]
             stage = d["stages"][0]
             stage["steps"] = steps
+            loaded = stage["displacement"]["load_top" if args.specimen == "disc" else "top"]
+            if args.displacement is not None:
+                loaded["y"] = -args.displacement
             stage["max_steps"] = 40 * steps
             for coh in sections:
                 coh["form"] = form
@@ -143,24 +152,28 @@ def main() -> None:
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
-                   "pieces": int(h["n_fragments"][-1]), "separated_m": float(h["separated"][-1]),
+                   "viscosity": visc if variant == "ep viscous" else None,
+                   "displacement_m": -float(loaded["y"]), "pieces": int(h["n_fragments"][-1]),
+                   "separated_m": float(h["separated"][-1]),
                    "u_end_over_peak": float(h[reaction.replace("R_", "u_")][-1]
                                             / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
-            record["runs"][f"{variant} {steps}"] = rec
+            record["runs"][f"{variant} {steps} {rec['displacement_m']:g}"] = rec
             print(variant, steps, rec, flush=True)
     order = {"ep": 0, "ep viscous": 1, "rp": 2}
     rows = []
-    for rec in sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r["nominal_steps"])):
+    for rec in sorted(record["runs"].values(),
+                      key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0), r["nominal_steps"])):
         v = rec["variant"]
-        rows.append([v.upper() if v != "ep viscous" else f"EP, viscosity {visc:g}, load control",
-                     rec["nominal_steps"], rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
+        eta = rec.get("viscosity") or VISCOSITY[args.specimen]
+        rows.append([v.upper() if v != "ep viscous" else f"EP, viscosity {eta:g}, load control",
+                     rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
                      rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}",
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
                      f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec.get("pieces", "-"),
                      f"{1e3 * rec['separated_m']:.1f}" if "separated_m" in rec else "-",
                      f"{rec['u_end_over_peak']:.2f}" if "u_end_over_peak" in rec else "-", rec["ended"],
                      f"{rec['date']}, {rec['load_average']:.2f}"])
-    lines = markdown_table(["form", "nominal steps", "interface points", "steps", "Newton it./step",
+    lines = markdown_table(["form", "nominal steps", "displacement [mm]", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
                             "D (law) [J/m]", "D (viscous) [J/m]", "pieces", "separated [mm]",
                             "u end / u at peak", "ended", "ran (date, load)"], rows)

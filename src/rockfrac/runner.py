@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -347,9 +347,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             if warn is not None and lead:
                 warn(w)
 
-        def on_step(info: StepInfo) -> None:
-            if distribution is not None:  # the whole vectors, for every rank's history row
-                info = replace(info, u=model.gather(info.u), f_int=model.gather(info.f_int))
+        def on_step(info: StepInfo) -> None:  # on MPI ranks, u and f_int are valid on the rank's own dofs
             rec = point_rows(built, info.u)
             row = history.row(info, rec)
             gather_events()

@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
@@ -139,6 +140,7 @@ class History:
                         + group_cols + [c for m in monitors for c in m.columns] + ENERGY
                         + (["D_viscous"] if self.viscous else []) + (["E_released"] if self.cuts else []))
         self.n_w = model.n_dofs if self.cuts else self.n_u  # the dofs whose forces work (the enrichments' too)
+        self._linear = self._functionals()
         self.e0 = self.elastic_energy(u0)
         self.work = 0.0
         self.released = 0.0
@@ -151,14 +153,53 @@ class History:
         if not np.any(f0) and not np.any(u0):
             return np.zeros(self.n_w)
         self.model.begin_step()
-        return self.model.gather(self.model.assemble(u0, u0, f0).f_int)[: self.n_w].copy()  # whole, on ranks
+        return self._owned(self.model.assemble(u0, u0, f0).f_int)
 
     def after_cuts(self, u: np.ndarray, f_ext: np.ndarray) -> None:  # f_ext: shapes only (f_int is the use)
         """The internal forces of the committed system at u (cells cut at the commit included), which
         start the next step's work (models whose cracks cut cells; an assembly per step)."""
         if self.cuts:
             self.model.begin_step()
-            self.f_post = self.model.gather(self.model.assemble(u, u, f_ext).f_int)[: self.n_w].copy()
+            self.f_post = self._owned(self.model.assemble(u, u, f_ext).f_int)
+
+    def _owned(self, f: np.ndarray) -> np.ndarray:
+        """The forces' first n_w entries, zero where another MPI rank owns the dof: a dot product with
+        them, summed over the ranks, counts every dof once (serial: a copy)."""
+        return self.model.owned(f)[: self.n_w].copy()
+
+    def _functionals(self) -> tuple[list[str], sp.csr_matrix, list[str], sp.csr_matrix, list[str], sp.csr_matrix]:
+        """The row's quantities linear in the displacements (group means, monitors, u_axial), in the
+        internal forces (F_axial) and in the reactions f_int - f_ext (group sums): their names and
+        matrices over the displacement dofs, each rank's restricted to the dofs it owns, so that the
+        values are the sums of the ranks' products (one reduction per row)."""
+        d, on_u, on_f, on_r = self.dim, [], [], []
+        if self.axial_dofs is not None:
+            n = len(self.axial_dofs)
+            on_u.append(("u_axial", self.axial_dofs, np.full(n, -1.0 / n)))
+            on_f.append(("F_axial", self.axial_dofs, np.full(n, -1.0 / self.thickness)))
+        for g, ids in self.groups.items():
+            for a in range(d):
+                on_u.append((f"u_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / ids.size)))
+                on_r.append((f"R_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / self.thickness)))
+        for m in self.monitors:
+            if m.direction is None:
+                on_u += [(col, np.array([d * m.nodes[0][0] + a]), np.ones(1)) for a, col in enumerate(m.columns)]
+                continue
+            a_, b_ = np.asarray(m.nodes[0]), np.asarray(m.nodes[1])
+            dofs = np.concatenate([d * b_[:, None] + np.arange(d), d * a_[:, None] + np.arange(d)]).ravel()
+            weights = np.concatenate([np.tile(m.direction / b_.size, (b_.size, 1)),
+                                      np.tile(-m.direction / a_.size, (a_.size, 1))]).ravel()
+            on_u.append((m.name, dofs, weights))
+        own = self.model.owned(np.ones(self.model.n_dofs))[: self.n_u]
+
+        def matrix(rows: list) -> sp.csr_matrix:
+            i = np.concatenate([np.full(len(dofs), k) for k, (_, dofs, _) in enumerate(rows)] + [np.zeros(0, int)])
+            j = np.concatenate([dofs for _, dofs, _ in rows] + [np.zeros(0, int)])
+            v = np.concatenate([w for _, _, w in rows] + [np.zeros(0)])
+            return sp.csr_matrix((v * own[j], (i, j)), shape=(len(rows), self.n_u))
+
+        return ([n for n, _, _ in on_u], matrix(on_u), [n for n, _, _ in on_f], matrix(on_f),
+                [n for n, _, _ in on_r], matrix(on_r))
 
     @property
     def notes(self) -> list[str]:
@@ -179,13 +220,12 @@ class History:
         self.work = float(saved["work"])
         self.released = float(saved.get("released", 0.0))
         self.u_prev = saved["u_prev"][: self.n_w].copy()
-        self.f_prev = saved["f_prev"][: self.n_w].copy()
+        f = saved["f_prev"]
+        self.f_prev = self._owned(f) if f.shape[0] == self.model.n_dofs else f[: self.n_w].copy()
 
     def row(self, info: StepInfo, rec: dict | None) -> dict:
         """Every column of the step (committed state)."""
         row = step_columns(info)
-        if self.axial_dofs is not None:
-            row.update(axial_columns(info.u, info.f_int, self.axial_dofs, self.thickness))
         row.update(crack_columns(self.model.groups, rec, self.means, self.model))
         if self.fragments is not None:
             mine = [g.separated() for g in self.surfaces]
@@ -194,33 +234,26 @@ class History:
             row["n_fragments"] = self.pieces.count
             row["separated"] = self.model.reduce_sum(sum(a for _, a in mine)) / self.thickness
         row["time"] = info.stage_index + info.load_factor
-        u = info.u[: self.n_u].reshape(-1, self.dim)
         f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)
-        r = (info.f_int - f_ext)[: self.n_u].reshape(-1, self.dim) / self.thickness
-        for g, ids in self.groups.items():
-            um, rs = u[ids].mean(axis=0), r[ids].sum(axis=0)
-            for a in range(self.dim):
-                row[f"u_{g}_{AXES[a]}"] = float(um[a])
-                row[f"R_{g}_{AXES[a]}"] = float(rs[a])
-        for m in self.monitors:
-            if m.direction is None:
-                for a, col in enumerate(m.columns):
-                    row[col] = float(u[m.nodes[0][0], a])
-            else:
-                rel = u[m.nodes[1]].mean(axis=0) - u[m.nodes[0]].mean(axis=0)
-                row[m.name] = float(rel @ m.direction)
-        f_now = info.f_int[: self.n_w]
+        names_u, on_u, names_f, on_f, names_r, on_r = self._linear
+        values = self.model.reduce_sum(np.concatenate([on_u @ info.u[: self.n_u], on_f @ info.f_int[: self.n_u],
+                                                       on_r @ (info.f_int - f_ext)[: self.n_u]]))
+        row.update({name: float(v) for name, v in zip(names_u + names_f + names_r, values)})
+        f_now = self._owned(info.f_int)
         u_now = info.u[: self.n_w]
         du = u_now - self.u_prev
-        start = self.f_prev
+        start, released = self.f_prev, 0.0
         if self.f_post is not None:  # the last commit cut cells: the reactions jumped to the new system's,
             free = self.model.free[self.model.free < self.n_w]  # and its unbalance on the free dofs is
             jump = self.f_post[free] - self.f_prev[free]  # released as the step relaxes it (E_released)
-            self.released -= 0.5 * float(jump @ du[free]) / self.thickness
+            released = -0.5 * float(jump @ du[free])
             start = self.f_post.copy()
             start[free] = self.f_prev[free]
-        self.work += 0.5 * float((start + f_now) @ du) / self.thickness
-        self.u_prev, self.f_prev = u_now.copy(), f_now.copy()
+        step_work = 0.5 * float((start + f_now) @ du)
+        step_work, released = self.model.reduce_sum(np.array([step_work, released]))
+        self.work += step_work / self.thickness
+        self.released += released / self.thickness
+        self.u_prev, self.f_prev = u_now.copy(), f_now
         self.after_cuts(info.u, f_ext)
         e_el, dissipated = self.elastic_energy(info.u), self.dissipated()
         released = self.released

@@ -98,6 +98,8 @@ def main() -> None:
     if args.displacement is not None:  # the same relaxation time per metre of loading: a stage is one unit of
         visc *= (1e-4 if args.specimen == "disc" else 1e-3) / args.displacement  # pseudo-time
     name = "fragmentation" if args.specimen == "disc" else "fragmentation_grains"
+    if size != SIZE[args.specimen]:  # another mesh: its own results and table (README.md markers)
+        name += f"_{1e3 * size:g}mm"
     record: dict = {"machine": machine(), "load_start": os.getloadavg(), "specimen": args.specimen, "size": size,
                     "runs": {}}
     saved = HERE / "results" / f"{name}.json"

@@ -12,8 +12,9 @@ from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
 
 
-def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region."""
+def _bulk_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
+    """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region
+    (whole = False: this MPI rank's cells only, the others zero, for its piece; no reduction)."""
     n_el = built.mesh.cells.shape[0]
     out = {"stress": np.zeros((n_el, 6)), "plastic_strain": np.zeros((n_el, 6)), "gamma": np.zeros(n_el),
            "localized": np.zeros(n_el, dtype=np.int8), "region": np.zeros(n_el, dtype=np.int32)}
@@ -21,6 +22,8 @@ def _bulk_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
         out["region"][g.cell_ids] = k
         for name, values in g.cell_fields(u).items():
             out[name][g.cell_ids] = values
+    if not whole:
+        return out
     return {name: built.model.reduce_sum(v) for name, v in out.items()}  # each cell on one rank
 
 
@@ -149,8 +152,11 @@ def step_output(built, u: np.ndarray) -> StepFields:
 
 def step_piece(built, u: np.ndarray) -> StepFields:
     """This MPI rank's piece of the step's fields: its own bulk cells, interface cells and embedded
-    segments (a collective call; see rockfrac.output.vtk.piece_of)."""
-    whole, hosts = _step_output(built, u)
+    segments (a collective call; see rockfrac.output.vtk.piece_of). The bulk fields are the rank's
+    own cells' (15 numbers a cell, not summed over the ranks); the displacement is gathered whole (an
+    interface cell's nodes need not be the rank's dofs), and the interface cells' and segments'
+    fields are summed or gathered."""
+    whole, hosts = _step_output(built, u, whole=False)
     part, rank = built.partition, built.model.rank
     keep = []
     for blocks in whole.cell_data["cell_kind"]:
@@ -164,7 +170,8 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     return piece_of(whole, keep)
 
 
-def _step_output(built, u: np.ndarray) -> tuple[StepFields, np.ndarray | None]:
+def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, np.ndarray | None]:
+    """The step's fields; whole = False: the bulk fields valid on this MPI rank's cells only (its piece)."""
     mesh = built.mesh
     disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
@@ -176,7 +183,7 @@ def _step_output(built, u: np.ndarray) -> tuple[StepFields, np.ndarray | None]:
         interfaces=mesh.interfaces if mesh.interfaces.size else None,
         segments=segments, segment_cells=hosts,
         point_data={"displacement": disp},
-        bulk_data=_bulk_fields(built, u),
+        bulk_data=_bulk_fields(built, u, whole),
         interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
         triangles=triangles, triangle_data=tri_data or None,

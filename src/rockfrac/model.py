@@ -55,8 +55,8 @@ class Model:
     n_dofs: int = field(init=False, default=0)
     pattern: Pattern = field(init=False, repr=False)
     free: np.ndarray = field(init=False, repr=False)
-    _const_data: np.ndarray = field(init=False, repr=False)
-    _const_matrix: sp.csr_matrix = field(init=False, repr=False)
+    _const_data: np.ndarray | None = field(init=False, repr=False)  # None: no constant group
+    _const_matrix: sp.csr_matrix | None = field(init=False, repr=False)
     _const_force: np.ndarray | None = field(init=False, default=None, repr=False)
     _bc_hit: np.ndarray = field(init=False, repr=False)
     _bc_diag: np.ndarray = field(init=False, repr=False)
@@ -90,8 +90,9 @@ class Model:
         # are copied out of the pattern's single slot array, which is then freed
         self.pattern.slots = [np.zeros((0,) + sl.shape[1:], dtype=sl.dtype) if g.constant else sl.copy()
                               for g, sl in zip(self.groups, self.pattern.slots)]
-        self._const_data = data
-        self._const_matrix = self.pattern.matrix(data)
+        constant = any(g.constant for g in self.groups)  # else no matrix of zeros is kept (nnz floats)
+        self._const_data = data if constant else None
+        self._const_matrix = self.pattern.matrix(data) if constant else None
 
     def refresh_structure(self) -> bool:
         """Make the pattern again if a group's dofs changed (cells cut by a nodal crack); True if so."""
@@ -186,8 +187,11 @@ class Model:
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
         """Residual and consistent tangent at u (trial state from the committed one at u_n)."""
         self.refresh_structure()
-        data = self._const_data.copy()
-        f_int = self._const_matrix @ u
+        if self._const_data is not None and self._const_matrix is not None:
+            data = self._const_data.copy()
+            f_int = self._const_matrix @ u
+        else:
+            data, f_int = np.zeros(self.pattern.nnz), np.zeros(self.n_dofs)
         if self._const_force is not None:
             f_int += self._const_force
         ok, switched, msgs, local = True, 0, [], 0.0

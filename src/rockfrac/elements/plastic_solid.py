@@ -133,14 +133,14 @@ class DruckerPragerSolid(SolidGroup):
         self.status = np.zeros(shape[0], dtype=np.int64)
         self._buffers: tuple[np.ndarray, np.ndarray] | None = None
         self.E, self.nu = law.E, law.nu
-        self.eigenstrain = np.zeros(shape + (6,))  # -S sigma0: the in-situ stress held in eps^p (engineering)
+        self.eigenstrain: np.ndarray | None = None  # -S sigma0: an in-situ stress held in eps^p (engineering)
         self.dissipated = 0.0  # sum of w sigma : d eps^p over the committed steps [J]
 
     def set_initial_stress(self, stress: StressField) -> None:
         """sigma = Ce (eps - eps^p) starts at sigma0: eps^p starts at the eigenstrain -S sigma0 (reported
         plastic strains exclude it)."""
         sigma0 = self.initial_stress_at_points(stress)
-        self.eigenstrain[...] = -sigma0 @ isotropic_compliance(self.E, self.nu).T
+        self.eigenstrain = -sigma0 @ isotropic_compliance(self.E, self.nu).T
         for st in (self.state, self.trial):
             st[..., S_EPS_P:S_EPS_P + 6] = self.eigenstrain
         self.sigma[...] = sigma0
@@ -195,7 +195,8 @@ class DruckerPragerSolid(SolidGroup):
 
     def cell_fields(self, u: np.ndarray) -> dict[str, np.ndarray]:
         out = super().cell_fields(u)
-        out["plastic_strain"] = (self.state[..., S_EPS_P:S_EPS_P + 6] - self.eigenstrain).mean(axis=1)
+        eps_p = self.state[..., S_EPS_P:S_EPS_P + 6]
+        out["plastic_strain"] = (eps_p if self.eigenstrain is None else eps_p - self.eigenstrain).mean(axis=1)
         out["gamma"] = self.state[..., S_GAMMA].mean(axis=1)
         return out
 

@@ -5,10 +5,13 @@ pair that still holds, leaves it whole."""
 import numpy as np
 import pytest
 
+from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.mesh import Mesh
 from rockfrac.mesh.interfaces import all_edges, insert_interfaces
 from rockfrac.mesh.interfaces_3d import all_faces, insert_faces
+from rockfrac.output.csvout import read_csv
 from rockfrac.output.fragments import Fragments
+from rockfrac.runner import run_case
 from test_interfaces import grid
 
 
@@ -82,3 +85,37 @@ def test_a_hexahedral_box_cut_by_a_plane_falls_into_two():
     plane = f.pieces(pairs_where(m, lambda c: np.isclose(c[:, 2], 1.0 / 3.0)))
     assert plane.count == 2 and plane.size == pytest.approx([2.0 / 3.0, 1.0 / 3.0], rel=1e-12)
     assert plane.centroid[1] == pytest.approx([0.5, 0.5, 1.0 / 6.0], rel=1e-12)
+
+
+def pulled_block(fraction: float | None) -> dict:
+    """The 4 x 2 block of tests/test_implex.py, bilinear EP surfaces on every internal edge, pulled."""
+    d = {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.02, "nx": 4, "ny": 2},
+         "bulk": {"E": 1e10, "nu": 0.2},
+         "cohesive": {"law": "bilinear", "form": "ep", "where": "all", "sigma_c": 1e6, "Gc": 100.0, "kn": 1e14,
+                      "kt": 1e14},
+         "stages": [{"name": "pull", "steps": 100, "control": "path", "max_steps": 3000,
+                     "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0}, "top": {"x": 0.0, "y": 1e-3}},
+                     "stop": {"quantity": "R_top_y", "below_peak_fraction": 1e-6}}],
+         "output": {"vtk": False, "picture": False, "points": False}}
+    if fraction is not None:
+        d["output"]["separated_fraction"] = fraction
+    return d
+
+
+def test_the_separated_fraction_sets_when_a_pair_lets_go(tmp_path):
+    """With [output] separated_fraction = 0.5 the block falls in two once its surfaces have lost half
+    their strength, at half the peak load (the bilinear law: the load falls with the strength); with
+    the default 1 %, at 1 % of it. The fraction is checked."""
+    loads = {}
+    for fraction in (None, 0.5):
+        run_case(parse_case(pulled_block(fraction)), tmp_path / str(fraction))
+        h = read_csv(tmp_path / str(fraction) / "history.csv")
+        r = np.abs(h["R_top_y"])
+        first = int(np.argmax(h["n_fragments"] == 2))
+        assert h["n_fragments"][first - 1] == 1 and h["n_fragments"][-1] == 2
+        loads[fraction] = (r[first - 1] / r.max(), r[first] / r.max())
+    assert loads[0.5][1] <= 0.5 + 1e-9 and loads[0.5][0] > 0.5  # it lets go in the step that crosses half
+    assert loads[None][1] <= 0.01 + 1e-9 and loads[None][0] > 0.01
+    for bad in (0.0, 1.0, -0.1, "half"):
+        with pytest.raises(CaseError, match="separated_fraction"):
+            parse_case(pulled_block(bad), "c.toml")  # type: ignore[arg-type]

@@ -138,7 +138,8 @@ def make_history(built: Built, path: str = "<case>") -> History:
     history = History(built.mesh, built.model, thickness=built.thickness, u0=built.program.u0, f0=built.program.f0,
                       monitors=resolve_monitors(built.case, built.mesh, path),
                       axial_dofs=built.top_y_dofs if built.case.loading is not None else None,
-                      means=tuple(n for g in built.cohesives for n in g.law.record_names if not n.startswith("eps_")))
+                      means=tuple(n for g in built.cohesives for n in g.law.record_names if not n.startswith("eps_")),
+                      separated_fraction=built.case.output.separated_fraction)
     for m in history.monitors:
         clash = [c for c in m.columns if c in history.reserved]
         if clash:

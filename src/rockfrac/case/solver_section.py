@@ -58,5 +58,8 @@ class OutputSection(_Section):
     vtk_every: Count = Field(1, description="write every n-th converged step to the series")
     checkpoint_every: int = Field(0, ge=0, le=10_000_000, description="save a checkpoint every n converged steps (0: never); "
                                   "rockfrac run --resume continues from the last one")
+    separated_fraction: float = Field(0.01, gt=0.0, lt=1.0, description="a cohesive point counts as separated "
+                                      "(history.csv's n_fragments and separated) once its tensile strength is below "
+                                      "this fraction of its virgin one")
     picture: bool = Field(True, description="draw crack_map.png: the deformed mesh at the last converged step, "
                           "coloured by the plastic multiplier, with the yielded cracks coloured by their jump")

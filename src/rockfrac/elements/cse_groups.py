@@ -57,11 +57,12 @@ class _CohesiveGroup(ElementGroup):
     def dissipated_energy(self) -> float:
         return self.dissipated
 
-    def separated(self) -> tuple[np.ndarray, float]:
-        """The committed points that have lost their tensile strength (:meth:`TractionLaw.separated`),
-        where the surface no longer holds its sides together: their (minus, plus) nodes (k, 2), and
-        their tributary size, the crack's length [m] in 2D or area [m^2] in 3D."""
-        hit = self.law.separated(self.state)
+    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
+        """The committed points that have lost their tensile strength, down to ``fraction`` of the
+        virgin one (:meth:`TractionLaw.separated`), where the surface no longer holds its sides
+        together: their (minus, plus) nodes (k, 2), and their tributary size, the crack's length [m]
+        in 2D or area [m^2] in 3D."""
+        hit = self.law.separated(self.state, fraction)
         return (np.stack([self.points.minus[hit], self.points.plus[hit]], axis=1),
                 float(self.points.weight[hit].sum()))
 

@@ -72,8 +72,8 @@ class Law3D:
     def yield_values(self, state: np.ndarray) -> np.ndarray:
         return self.planar.yield_values(planar_states(state))
 
-    def separated(self, state: np.ndarray) -> np.ndarray:
-        return self.planar.separated(planar_states(state))
+    def separated(self, state: np.ndarray, fraction: float) -> np.ndarray:
+        return self.planar.separated(planar_states(state), fraction)
 
     def dissipation(self, state: np.ndarray) -> np.ndarray:
         return self.planar.dissipation(planar_states(state))

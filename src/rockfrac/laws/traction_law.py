@@ -43,7 +43,8 @@ S_TT, S_TN, S_UPT, S_UPN = 0, 1, 2, 3  # the common state slots
 COMMON_STATE = ("T_t", "T_n", "jump_p_t", "jump_p_n")
 MODE_PLASTIC = 1.0
 SEPARATED = 1e-2  # a point left with less than this fraction of its virgin tensile strength is separated
-# (the bilinear law reaches zero at delta_c; the paper's hyperbolic softening only tends to it)
+# by default ([output] separated_fraction; the bilinear law reaches zero at delta_c, the paper's
+# hyperbolic softening only tends to it)
 
 
 @inner
@@ -166,8 +167,8 @@ class TractionLaw(ABC):
         """Virgin states (n, n_state)."""
         return np.zeros((n, self.n_state))
 
-    def separated(self, state: np.ndarray) -> np.ndarray:
-        """(n,) True where a point has lost its tensile strength (down to SEPARATED of its virgin one):
-        the surface is a crack there, its two sides held only by contact and friction."""
+    def separated(self, state: np.ndarray, fraction: float = SEPARATED) -> np.ndarray:
+        """(n,) True where a point has lost its tensile strength (down to ``fraction`` of its virgin
+        one): the surface is a crack there, its two sides held only by contact and friction."""
         virgin = float(self.records(self.initial_state(1))[self.tensile_record][0])
-        return self.records(state)[self.tensile_record] <= SEPARATED * virgin
+        return self.records(state)[self.tensile_record] <= fraction * virgin

@@ -34,6 +34,7 @@ import scipy.sparse as sp
 from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.solid import SolidGroup
+from rockfrac.laws.traction_law import SEPARATED
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.model import Model
 from rockfrac.output.fragments import Fragments, Pieces
@@ -116,8 +117,10 @@ class History:
     """
 
     def __init__(self, mesh: Mesh, model: Model, *, thickness: float, u0: np.ndarray, f0: np.ndarray,
-                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None, means: tuple[str, ...] = ()):
-        """means: point records averaged into columns besides MEANS (a traction law's own)."""
+                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None, means: tuple[str, ...] = (),
+                 separated_fraction: float = SEPARATED):
+        """means: point records averaged into columns besides MEANS (a traction law's own);
+        separated_fraction: the tensile strength left, relative, below which a cohesive point lets go."""
         self.means = MEANS + tuple(m for m in means if m not in MEANS)
         self.mesh, self.model, self.thickness, self.axial_dofs = mesh, model, thickness, axial_dofs
         self.dim = mesh.dim
@@ -131,6 +134,7 @@ class History:
         self.surfaces = [g for g in model.groups if isinstance(g, (CohesiveEP, CohesiveRP))]
         self.fragments = Fragments(mesh) if mesh.interfaces.shape[0] else None
         self.pieces: Pieces | None = None  # the fragments at the last row
+        self.separated_fraction = separated_fraction
         # a model whose cracks cut cells as they grow (nodal embedded cracks): each cut changes the
         # discrete system at the committed displacement, and the internal forces of the new one,
         # not those the step converged to, start the next step's work
@@ -228,7 +232,7 @@ class History:
         row = step_columns(info)
         row.update(crack_columns(self.model.groups, rec, self.means, self.model))
         if self.fragments is not None:
-            mine = [g.separated() for g in self.surfaces]
+            mine = [g.separated(self.separated_fraction) for g in self.surfaces]
             pairs = np.concatenate([p for p, _ in mine] + [np.zeros((0, 2), dtype=np.int64)])
             self.pieces = self.fragments.pieces(np.concatenate(self.model.allgather(pairs)))
             row["n_fragments"] = self.pieces.count

@@ -21,6 +21,8 @@ from rockfrac.fem.kinematics import element_gradients
 from rockfrac.fem.reference import ELEMENTS
 from rockfrac.mesh.mesh import Mesh
 
+CHUNK = 20_000  # cells whose shape gradients are made at once (about 30 MB for hexahedra)
+
 
 @dataclass
 class Pieces:
@@ -51,10 +53,18 @@ class Fragments:
         self._star, self._pairs = star, pairs
         self._pair_keys = self._keys(pairs)
         self._first = cells[:, 0]
-        _, wdet = element_gradients(mesh.nodes[cells], ELEMENTS[mesh.cell_type])
-        self._volume = wdet.sum(axis=1)
-        self._centre = mesh.nodes[cells].mean(axis=1)
+        self._mesh = mesh
+        self._volume: np.ndarray | None = None  # the cells' sizes, made when first needed
         self._last: tuple[bytes, Pieces] | None = None
+
+    def _volumes(self) -> np.ndarray:
+        """Each cell's area or volume [m^2 or m^3] (its quadrature's det J w), a block of cells at a
+        time: the shape gradients of a whole 3D mesh at once would take GBs."""
+        if self._volume is None:
+            mesh, ref = self._mesh, ELEMENTS[self._mesh.cell_type]
+            self._volume = np.concatenate([element_gradients(mesh.nodes[mesh.cells[a:a + CHUNK]], ref)[1].sum(axis=1)
+                                           for a in range(0, mesh.cells.shape[0], CHUNK)])
+        return self._volume
 
     def _keys(self, pairs: np.ndarray) -> np.ndarray:
         """One integer per node pair, whichever node is listed first."""
@@ -68,18 +78,20 @@ class Fragments:
             return self._last[1]
         holding = self._pairs[~np.isin(self._pair_keys, keys)]
         edges = np.concatenate([self._star, holding])
-        graph = sp.coo_matrix((np.ones(edges.shape[0], dtype=np.int8), (edges[:, 0], edges[:, 1])),
+        graph = sp.coo_matrix((np.ones(edges.shape[0], dtype=np.int32), (edges[:, 0], edges[:, 1])),
                               shape=(self.n_nodes, self.n_nodes)).tocsr()
         _, node_label = connected_components(graph, directed=False)
         _, label = np.unique(node_label[self._first], return_inverse=True)
-        size = np.bincount(label, weights=self._volume)
+        volume = self._volumes()
+        size = np.bincount(label, weights=volume)
         order = np.argsort(-size, kind="stable")  # the largest fragment first
         rank = np.empty_like(order)
         rank[order] = np.arange(order.shape[0])
         label = rank[label]
         size = size[order]
-        centroid = np.stack([np.bincount(label, weights=self._volume * self._centre[:, a]) for a in
-                             range(self._centre.shape[1])], axis=1) / size[:, None]
+        centre = self._mesh.nodes[self._mesh.cells].mean(axis=1)
+        centroid = np.stack([np.bincount(label, weights=volume * centre[:, a]) for a in range(centre.shape[1])],
+                            axis=1) / size[:, None]
         out = Pieces(label, np.bincount(label), size, centroid)
         self._last = (tag, out)
         return out

@@ -30,6 +30,7 @@ from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, rows_digest
 from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
 from rockfrac.output.observers import (
     Checkpoints,
+    FragmentsCsv,
     HistoryCsv,
     Observer,
     PointsCsv,
@@ -37,7 +38,6 @@ from rockfrac.output.observers import (
     Quiet,
     RunLog,
     Step,
-    FragmentsCsv,
     StopRules,
     VtkSeriesWriter,
     position_from_arrays,

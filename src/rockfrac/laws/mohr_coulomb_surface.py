@@ -208,7 +208,7 @@ class MohrCoulombSurface(TractionLaw):
     mode_slot = S_MODE
     dgamma_slot = S_DGAMMA
     record_names = ("eps_n_p", "eps_s_p", "chi", "c", "tan_phi", "tan_psi")
-    tensile_record = "chi"  # the tension cap: the strength in pure tension (Eq. 21)
+    tensile_record = "chi"  # the tensile strength: F = 0 at T_t = 0, T_n = chi (eq. 18)
     ep_kernel = ep_points
     rescue_kernel = ep_rescue_points
     rp_kernel = rp_points

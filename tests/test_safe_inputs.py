@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from rockfrac.cli import main
+from rockfrac.output import checkpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -448,3 +449,16 @@ def test_a_load_the_solve_cannot_follow_is_named(tmp_path, capsys):
     assert f"loads from {case}: [loading] confinement = 20000 Pa" in text, text
     assert "increment below min_step" in text
     assert "[loading] confinement" in (out / "run.log").read_text().splitlines()[-2]
+
+
+def test_resume_refuses_a_checkpoint_of_another_size(checkpointed, capsys):
+    """A checkpoint (intact, its checksum right) whose displacement vector is not this model's length
+    is refused by name before anything is restored."""
+    case, out = checkpointed
+    saved = checkpoint.load(out)
+    assert saved is not None
+    position = {**saved.position, "u": saved.position["u"][:-2]}
+    checkpoint.save(out, position, saved.groups, saved.run, saved.case_sha256, saved.history_sha256)
+    code, err = run_cli(capsys, "run", case, "--out", out, "--resume")
+    line = _one_error_line(err)
+    assert code == 2 and "written for a different model" in line and "vector has" in line, line

@@ -270,6 +270,18 @@ class Model:
         """Every rank's value, in rank order, on every rank (serial: [value])."""
         return [value]
 
+    def local_entries(self, x: np.ndarray) -> np.ndarray:
+        """The entries of a full-length vector this process keeps: its share of a checkpoint (serial:
+        all of them; an MPI rank: those of its local dofs, owned and ghosts)."""
+        return x
+
+    def from_local_entries(self, values: np.ndarray) -> np.ndarray:
+        """The full-length vector whose kept entries are ``values`` (the inverse of :meth:`local_entries`
+        on the entries this process reads; ValueError for a vector of another length)."""
+        if values.shape != (self.n_dofs,):
+            raise ValueError(f"{values.shape[0]} entries, this model has {self.n_dofs} dofs")
+        return values.astype(float)
+
     def owned(self, x: np.ndarray) -> np.ndarray:
         """x on the dofs this rank owns, zero elsewhere: a vector each dof of which is held by one
         rank only, so that dot products sum over the ranks (serial: x)."""

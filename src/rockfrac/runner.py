@@ -10,7 +10,7 @@ from __future__ import annotations
 import csv
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -177,14 +177,7 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
     if saved.case_sha256 != checkpoint.text_sha256(case_text):
         raise CaseError(f"{out}: --resume: the case differs from the one the checkpoint was written for "
                         f"({out / 'case.toml'}); resume with the same case")
-    try:
-        position = position_from_arrays(saved.position)
-    except KeyError as err:
-        raise CaseError(f"{out}: --resume: the checkpoint has no position field {err}: written for a different "
-                        "model") from None
-    if position.u.shape != (built.model.n_dofs,):
-        raise CaseError(f"{out}: --resume: the checkpoint was written for a different model (its displacement "
-                        "vector has another size)")
+    position = _position(saved, out)
     history = out / "history.csv"
     if not history.is_file():
         raise CaseError(f"{history}: --resume: missing, so the checkpoint at step {position.count} cannot be "
@@ -207,6 +200,15 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
             raise CaseError(f"{out / checkpoint.rank_file(rank)}: --resume: missing or not written with the "
                             f"checkpoint at step {position.count}; rerun with --overwrite")
         saved = mine
+        position = _position(mine, out / checkpoint.rank_file(rank))
+    try:  # the vectors' entries this process keeps (an MPI rank: its local dofs')
+        whole = model.from_local_entries
+        position = replace(position, u=whole(position.u),
+                           f_int=None if position.f_int is None else whole(position.f_int),
+                           u_before=None if position.u_before is None else whole(position.u_before))
+    except ValueError as err:
+        raise CaseError(f"{out}: --resume: the checkpoint was written for a different model (its displacement "
+                        f"vector has {err})") from None
     groups = built.model.groups
     if len(saved.groups) != len(groups):
         raise CaseError(f"{out}: --resume: the checkpoint was written for a different model "
@@ -217,6 +219,15 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
     except ValueError as err:
         raise CaseError(f"{out}: --resume: {err}") from None
     return position, saved.run
+
+
+def _position(saved: checkpoint.Saved, where: Path) -> Position:
+    """The stepping position a checkpoint holds (CaseError if a field is missing)."""
+    try:
+        return position_from_arrays(saved.position)
+    except KeyError as err:
+        raise CaseError(f"{where}: --resume: the checkpoint has no position field {err}: written for a "
+                        "different model") from None
 
 
 def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict], None] | None = None,

@@ -680,3 +680,28 @@ def test_rigid_plastic_surfaces_on_ranks_write_the_serial_outputs_and_resume(tmp
     launch("--resume")
     assert "resumed from the checkpoint at step 50" in (tmp_path / "mpi" / "run.log").read_text()
     assert_same_table(read_csv(tmp_path / "mpi" / "history.csv"), whole, "resumed history.csv", chatty=True)
+
+
+def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path):
+    """A block pressed (stage 1, its right side free to bulge), then its right side held from where it
+    is and pulled (stage 2); checkpoints every 5 steps, resumed on 2 ranks from step 10, inside stage
+    2: the history is the uninterrupted run's and the serial run's. The stage's start values of the
+    right side come from the displacement at the end of stage 1, which each rank holds on its own
+    dofs only: a checkpoint keeps every rank's own (one rank's for all put the others' at zero)."""
+    case = {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 6, "ny": 12},
+            "materials": [{"region": "bulk", "model": "elastic", "E": 1.5e7, "nu": 0.3}],
+            "stages": [{"name": "press", "steps": 4, "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
+                                                                     "top": {"y": -4e-4}}},
+                       {"name": "pull", "steps": 8, "displacement": {"right": {"x": 2e-4}}}],
+            "output": {"picture": False, "points": False, "checkpoint_every": 5}}
+    split = case_file(case, tmp_path / "pull.toml", tmp_path / "serial")
+    out = tmp_path / "mpi"
+    first = rockfrac_on_ranks(2, split, out)
+    assert first.returncode == 0, first.stderr[-2000:]
+    whole = read_csv(out / "history.csv")
+    assert len(whole["step"]) == 12
+    assert_same_table(whole, read_csv(tmp_path / "serial" / "history.csv"), "history.csv")
+    again = rockfrac_on_ranks(2, split, out, "--resume")
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "resumed from the checkpoint at step 10" in (out / "run.log").read_text()
+    assert_same_table(read_csv(out / "history.csv"), whole, "resumed history.csv")

@@ -9,13 +9,16 @@ refused by NumPy before anything is built from it). It carries
 - ``meta.history_sha256``: the SHA-256 of the history rows written up to its step
   (:func:`rockfrac.output.csvout.rows_digest`), so ``--resume`` can prove that the folder's
   ``history.csv`` is the history of this checkpoint;
+- ``meta.n_groups``: how many element groups it was written for (a group without state, e.g. an
+  elastic solid, has no arrays of its own);
 - ``meta.payload_sha256``: the SHA-256 of every other array (names, dtypes, shapes, bytes), so a
   file damaged inside an intact archive is caught too;
 - ``position.*``, ``run.*`` and ``group<k>.<name>``: where the stepping is and the groups' state.
 
-An MPI run (rockfrac.parallel) writes the position (its vectors whole) and rank 0's groups into
-``checkpoint.npz``, with ``run.ranks``, and each other rank's groups into
-``checkpoint.rank<r>.npz`` (:func:`rank_file`, ``position.count`` the step it was written at): it
+An MPI run (rockfrac.parallel) gathers nothing: every rank writes its position, with its vectors'
+entries on its own local dofs (:meth:`rockfrac.model.Model.local_entries`), and its groups' state,
+rank 0 into ``checkpoint.npz`` with the run's counters and ``run.ranks``, each other rank into
+``checkpoint.rank<r>.npz`` (:func:`rank_file`; ``position.count`` the step it was written at). It
 resumes on the same number of ranks.
 
 It is written to a temporary file and moved into place, so a run killed at any moment leaves the
@@ -82,6 +85,7 @@ def save(folder: Path, position: dict[str, np.ndarray], groups: list[dict[str, n
         "meta.version": np.array(VERSION, dtype=np.int64),
         "meta.case_sha256": np.array(case_sha256),
         "meta.history_sha256": np.array(history_sha256),
+        "meta.n_groups": np.array(len(groups), dtype=np.int64),  # groups without state leave no arrays
     }
     for name, value in position.items():
         arrays[f"position.{name}"] = np.asarray(value)
@@ -143,5 +147,10 @@ def load(folder: Path, name: str = FILE) -> Saved | None:
             head, _, name = k.partition(".")
             groups.setdefault(int(head.removeprefix("group")), {})[name] = v
     n = max(groups, default=-1) + 1
+    count = arrays.get("meta.n_groups")  # absent in a checkpoint of an older rockfrac (version 4 alike)
+    if count is not None:
+        if count.dtype.kind != "i" or int(count) < n:
+            raise CaseError(f"{bad} (it counts {count!s} element groups but holds the state of {n})")
+        n = int(count)
     return Saved(position, run, [groups.get(i, {}) for i in range(n)], str(arrays["meta.case_sha256"]),
                  str(arrays["meta.history_sha256"]))

@@ -202,8 +202,9 @@ def position_from_arrays(a: dict[str, np.ndarray]) -> Position:
 class Checkpoints(Observer):
     """A checkpoint every ``every`` steps (0: never), with the hash of the history written so far.
 
-    On a distributed ``model`` every rank has one: the position's vectors are gathered whole, rank 0
-    writes them with its groups (``history``: its CSV), each other rank its groups into its own file.
+    On a distributed ``model`` every rank writes its own file, nothing gathered: the position with the
+    entries of its vectors on its local dofs (owned and ghosts: all it reads) and its groups' state;
+    rank 0's (``checkpoint.npz``) also has the run's counters and the hash of ``history`` (its CSV).
     """
 
     def __init__(self, folder: Path, every: int, model: Model, counters: Callable[[], dict[str, float]],
@@ -216,9 +217,9 @@ class Checkpoints(Observer):
         if not self.every or info.step % self.every or info.position is None:
             return
         model, p = self.model, info.position
-        if model.distributed:  # collective: every rank gathers
-            p = replace(p, u=model.gather(p.u), f_int=None if p.f_int is None else model.gather(p.f_int),
-                        u_before=None if p.u_before is None else model.gather(p.u_before))
+        keep = model.local_entries
+        p = replace(p, u=keep(p.u), f_int=None if p.f_int is None else keep(p.f_int),
+                    u_before=None if p.u_before is None else keep(p.u_before))
         states = [g.checkpoint_state() for g in model.groups]
         ranks = {"ranks": float(model.reduce_sum(1))} if model.distributed else {}
         if self.rank == 0:
@@ -226,7 +227,7 @@ class Checkpoints(Observer):
             checkpoint.save(self.folder, position_arrays(p), states, {**self.counters(), **ranks}, self.case_sha,
                             self.history.digest())
         else:
-            checkpoint.save(self.folder, {"count": np.array(p.count)}, states, ranks, self.case_sha, "",
+            checkpoint.save(self.folder, position_arrays(p), states, ranks, self.case_sha, "",
                             checkpoint.rank_file(self.rank))
         model.reduce_sum(0)  # every rank's file is in place before the log says so
         self.log(f"  checkpoint at step {info.step}")

@@ -219,6 +219,17 @@ class DistributedModel(Model):
     def allgather(self, value: Any) -> list[Any]:
         return self.comm.allgather(value)
 
+    def local_entries(self, x: np.ndarray) -> np.ndarray:
+        return x[self.layout.local]
+
+    def from_local_entries(self, values: np.ndarray) -> np.ndarray:
+        local = self.layout.local
+        if values.shape != local.shape:
+            raise ValueError(f"{values.shape[0]} entries, this rank has {local.shape[0]} local dofs")
+        out = np.zeros(self.layout.n)
+        out[local] = values
+        return out
+
     def owned(self, x: np.ndarray) -> np.ndarray:
         return np.where(self.layout.owned_mask, x, 0.0)
 

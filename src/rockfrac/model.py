@@ -270,6 +270,15 @@ class Model:
         """Every rank's value, in rank order, on every rank (serial: [value])."""
         return [value]
 
+    def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        """x at the given dofs, each from the rank that owns it (a collective call on MPI ranks, which
+        may ask for different dofs; serial: x[dofs])."""
+        return x[dofs]
+
+    def exchange(self, parts: list[Any]) -> list[Any]:
+        """parts[r] sent to rank r; what every rank sent to this one, in rank order (serial: parts)."""
+        return parts
+
     def local_entries(self, x: np.ndarray) -> np.ndarray:
         """The entries of a full-length vector this process keeps: its share of a checkpoint (serial:
         all of them; an MPI rank: those of its local dofs, owned and ghosts)."""

@@ -11,9 +11,17 @@ Tasks:
   tangent (Dirichlet rows of the first stage applied) in rockfrac's numbering, gathered from every
   rank's owned rows, and the residual; the ownership of cells and interface cells, and the ghost
   values after a scatter.
+- ``traffic``: run the case, then write the last step's ParaView piece and a checkpoint on every
+  rank while counting what each rank passes to MPI (pickled bytes of mpi4py's lowercase calls, the
+  buffers of its uppercase ones) and the entries it asks of the other ranks (``values_at``); the
+  largest rank's bytes, and the model's dofs.
 """
 
 from __future__ import annotations
+
+import pickle
+import tempfile
+from pathlib import Path
 
 import json
 import sys
@@ -77,6 +85,58 @@ def system(built, comm, u: np.ndarray) -> dict:
     return out
 
 
+class CountingComm:
+    """An mpi4py communicator that counts the bytes this rank passes to it."""
+
+    def __init__(self, comm):
+        self.comm, self.sent = comm, 0
+
+    def __getattr__(self, name):
+        call = getattr(self.comm, name)
+        if not callable(call) or name.startswith("Get"):
+            return call
+
+        def counted(*args, **kwargs):
+            for a in args:
+                self.sent += a.nbytes if isinstance(a, np.ndarray) else len(pickle.dumps(a))
+            return call(*args, **kwargs)
+
+        return counted
+
+
+def traffic(built, comm) -> dict:
+    from rockfrac.output.fields import step_piece
+    from rockfrac.output.observers import Checkpoints, Step
+
+    last = []
+
+    def keep(info) -> None:
+        last[:] = [info]
+
+    run_distributed(built, keep)
+    info, model = last[0], built.model
+    counting = CountingComm(model.comm)
+    asked = [0]
+    values_at = model.values_at
+
+    def counted_values_at(x, dofs):
+        asked[0] += len(dofs)
+        return values_at(x, dofs)
+
+    model.comm = model.layout.comm = counting
+    model.values_at = counted_values_at
+    piece = step_piece(built, info.u)
+    piece_bytes, counting.sent = counting.sent, 0
+    folder = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
+    history = type("History", (), {"digest": staticmethod(lambda: "")})()
+    Checkpoints(folder, 1, model, dict, history, "", lambda s: None, comm.rank).step(Step(info, {}, None))
+    model.comm = model.layout.comm = counting.comm
+    checkpoint_bytes = counting.sent
+    worst = np.max(comm.allgather([piece_bytes, checkpoint_bytes, asked[0], piece.points.shape[0]]), axis=0)
+    return {"piece_bytes": worst[0], "checkpoint_bytes": worst[1], "asked": worst[2], "piece_points": worst[3],
+            "n_dofs": np.array(model.n_dofs)}
+
+
 def main() -> None:
     task, case_file, out_file = sys.argv[1:4]
     comm = MPI.COMM_WORLD
@@ -88,7 +148,10 @@ def main() -> None:
         solvers.AMG_FROM_3D = 0
     try:
         built = build_distributed(parse_case(data, case_file), comm, case_file)
-        result = history(built, comm) if task.startswith("history") else system(built, comm, u)
+        if task == "traffic":
+            result = traffic(built, comm)
+        else:
+            result = history(built, comm) if task.startswith("history") else system(built, comm, u)
     except CaseError as err:
         result = {"error": np.array(str(err))}
     result["ranks"] = np.array(comm.Get_size())

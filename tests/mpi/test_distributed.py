@@ -705,3 +705,23 @@ def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path
     assert again.returncode == 0, again.stderr[-2000:]
     assert "resumed from the checkpoint at step 10" in (out / "run.log").read_text()
     assert_same_table(read_csv(out / "history.csv"), whole, "resumed history.csv")
+
+
+def test_a_paraview_piece_and_a_checkpoint_send_no_whole_vector(tmp_path):
+    """On 2 ranks, writing a step's ParaView piece and a checkpoint passes each rank's partition
+    surface through MPI, not the model: the bytes a rank sends are below a tenth of one whole vector
+    (8 bytes a dof; a gathered displacement alone was 8 n_dofs), and the displacement entries it asks
+    for are those of its piece's points. A block of 16 x 32 quads with cohesive surfaces on every
+    edge (4096 dofs, 1520 interface cells, those on the ranks' border summed across them), pulled."""
+    case = {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 16, "ny": 32},
+            "bulk": {"E": 1e10, "nu": 0.2},
+            "cohesive": {"law": "bilinear", "form": "ep", "where": "all", "sigma_c": 1e6, "Gc": 100.0, "kn": 1e14,
+                         "kt": 1e14},
+            "stages": [{"name": "pull", "steps": 2, "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
+                                                                    "top": {"y": 1e-7}}}]}
+    got = mpirun(2, "traffic", case, tmp_path)
+    whole = 8 * int(got["n_dofs"])
+    assert int(got["n_dofs"]) == 2 * 4 * 16 * 32
+    assert int(got["piece_bytes"]) < 0.1 * whole, (int(got["piece_bytes"]), whole)
+    assert int(got["checkpoint_bytes"]) < 0.1 * whole, (int(got["checkpoint_bytes"]), whole)
+    assert 0 < int(got["asked"]) == 2 * int(got["piece_points"])

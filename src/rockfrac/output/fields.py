@@ -38,10 +38,11 @@ def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp:
     return order[pos], keys[order][pos] == q
 
 
-def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
+def _interface_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
     """Per interface cell: the mean of its node-pair points (jump, traction, strengths, state), the
     vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); the sums over the points of every
-    rank of a distributed model."""
+    rank of a distributed model (whole = False: on this rank's own interface cells only, each rank's
+    share sent to the cell's owner, the others' entries left empty)."""
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
     n_if, half = cells.shape[0], cells.shape[1] // 2
@@ -71,14 +72,49 @@ def _interface_fields(built, u: np.ndarray) -> dict[str, np.ndarray]:
             count[hit] += 1
             state[hit] = np.maximum(state[hit], st[idx[hit]])
     model = built.model
-    sums = {name: model.reduce_sum(v) for name, v in sums.items()}
-    count, state = model.reduce_sum(count), model.reduce_max(state)
+    if whole:
+        sums = {name: model.reduce_sum(v) for name, v in sums.items()}
+        count, state = model.reduce_sum(count), model.reduce_max(state)
+        written = {name: model.reduce_max(w) for name, w in written.items()}
+    else:
+        sums, count, state, written = _to_owners(built, sums, count, state, written)
     for name, w in written.items():  # NaN where the cell's law has no such quantity
-        sums[name][model.reduce_max(w) == 0] = np.nan
+        sums[name][w == 0] = np.nan
     with np.errstate(invalid="ignore", divide="ignore"):
         out = {name: (v.T / count).T for name, v in sums.items()}  # NaN where no point (a crack tip pair)
     out["state"] = state
     return out
+
+
+def _to_owners(built, sums: dict[str, np.ndarray], count: np.ndarray, state: np.ndarray,
+               written: dict[str, np.ndarray]) -> tuple[dict, np.ndarray, np.ndarray, dict]:
+    """This rank's sums over its points, per interface cell, sent to the ranks owning the cells and
+    added there: each rank ends with its own cells' sums over every rank's points (the partition's
+    surface is all that travels)."""
+    owner, rank = built.partition.interface_part, built.model.rank
+    touched = np.flatnonzero((count > 0) & (owner != rank))
+    parts: list = []
+    for r in range(built.partition.n_parts):
+        ids = touched[owner[touched] == r]
+        parts.append((ids, {k: v[ids] for k, v in sums.items()}, count[ids], state[ids],
+                      {k: w[ids] for k, w in written.items()}) if ids.size else None)
+    others = built.model.exchange(parts)
+    mine = owner == rank
+    for v in (*sums.values(), count, *written.values()):  # this rank's own cells' sums stay
+        v[~mine] = 0
+    state[~mine] = -1
+    for got in others:
+        if got is None:
+            continue
+        ids, s, c, st, w = got
+        assert mine[ids].all()
+        for k, v in s.items():
+            sums[k][ids] += v
+        count[ids] += c
+        np.maximum.at(state, ids, st)
+        for k, v in w.items():
+            np.maximum.at(written[k], ids, v)
+    return sums, count, state, written
 
 
 def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray | None, dict]:
@@ -152,10 +188,11 @@ def step_output(built, u: np.ndarray) -> StepFields:
 
 def step_piece(built, u: np.ndarray) -> StepFields:
     """This MPI rank's piece of the step's fields: its own bulk cells, interface cells and embedded
-    segments (a collective call; see rockfrac.output.vtk.piece_of). The bulk fields are the rank's
-    own cells' (15 numbers a cell, not summed over the ranks); the displacement is gathered whole (an
-    interface cell's nodes need not be the rank's dofs), and the interface cells' and segments'
-    fields are summed or gathered."""
+    segments (a collective call; see rockfrac.output.vtk.piece_of). No whole vector travels: the
+    bulk fields are the rank's own cells', the displacement is scattered to the nodes of the piece
+    only (an interface cell's nodes need not be the rank's dofs), and each interface cell's sums
+    over its points come from the ranks holding them to the cell's owner. The embedded segments of
+    every rank are gathered (the cracked cells only), to number them in the serial order."""
     whole, hosts = _step_output(built, u, whole=False)
     part, rank = built.partition, built.model.rank
     keep = []
@@ -173,7 +210,15 @@ def step_piece(built, u: np.ndarray) -> StepFields:
 def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, np.ndarray | None]:
     """The step's fields; whole = False: the bulk fields valid on this MPI rank's cells only (its piece)."""
     mesh = built.mesh
-    disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
+    if whole:
+        disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
+    else:  # the nodes of this rank's cells and interface cells, each from its owner
+        part, rank = built.partition, built.model.rank
+        nodes = np.unique(np.concatenate([mesh.cells[part.cell_part == rank].ravel(),
+                                          mesh.interfaces[part.interface_part == rank].ravel()]))
+        dofs = (mesh.dim * nodes[:, None] + np.arange(mesh.dim)).ravel()
+        disp = np.zeros((mesh.n_nodes, mesh.dim))
+        disp[nodes] = built.model.values_at(u, dofs).reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
     triangles, tri_hosts, tri_data, tri_points = _surfaces(built, disp)
     if triangles is not None:
@@ -184,7 +229,7 @@ def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, 
         segments=segments, segment_cells=hosts,
         point_data={"displacement": disp},
         bulk_data=_bulk_fields(built, u, whole),
-        interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
+        interface_data=_interface_fields(built, u, whole) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
         triangles=triangles, triangle_data=tri_data or None,
         triangle_point_data=tri_points or None,

@@ -123,6 +123,21 @@ class Layout:
         lam = PETSc.IS().createGeneral(rows[~is_u].astype(PETSc.IntType), comm=self.comm)
         return u, lam
 
+    def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        """x at any dofs (rockfrac numbering), each from its owner: one scatter of those entries only
+        (a collective call; x is read on the owned entries)."""
+        PETSc = petsc()
+        dofs = np.asarray(dofs, dtype=np.int64)
+        v = self.to_vec(x)
+        seq = PETSc.Vec().createSeq(dofs.shape[0], comm=PETSc.COMM_SELF)
+        index = PETSc.IS().createGeneral(self.new[dofs].astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        scatter = PETSc.Scatter().create(v, index, seq, None)
+        scatter.scatter(v, seq, addv=PETSc.InsertMode.INSERT_VALUES, mode=PETSc.ScatterMode.FORWARD)
+        out = seq.getArray().copy()
+        for obj in (scatter, index, seq, v):
+            obj.destroy()
+        return out
+
     def gather(self, x: np.ndarray) -> np.ndarray:
         """The full vector on every rank, each entry from its owner (output, tests)."""
         full = np.zeros(self.n)

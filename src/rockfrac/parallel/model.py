@@ -219,6 +219,12 @@ class DistributedModel(Model):
     def allgather(self, value: Any) -> list[Any]:
         return self.comm.allgather(value)
 
+    def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        return self.layout.values_at(x, dofs)
+
+    def exchange(self, parts: list[Any]) -> list[Any]:
+        return self.comm.alltoall(parts)
+
     def local_entries(self, x: np.ndarray) -> np.ndarray:
         return x[self.layout.local]
 

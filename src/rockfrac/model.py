@@ -76,11 +76,16 @@ class Model:
         self.update_constant_force()
         self.set_dirichlet(self.dirichlet)
 
+    def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
+        """The matrix's size and each dof's row in it (None: the dof numbering itself); an MPI rank's
+        model numbers only its local dofs (rockfrac.parallel.model)."""
+        return self.n_dofs, None
+
     def _build_structure(self) -> None:
         """The sparsity pattern of the groups' dofs, the constant groups' part of the matrix."""
-        n = self.n_dofs
+        n, row = self._pattern_rows()
         self._structure = tuple(g.structure_version() for g in self.groups)
-        self.pattern = Pattern.build(n, [g.dofs for g in self.groups])
+        self.pattern = Pattern.build(n, [g.dofs if row is None else row[g.dofs] for g in self.groups])
         data = np.zeros(self.pattern.nnz)
         for g, slots in zip(self.groups, self.pattern.slots):
             if g.constant:
@@ -118,7 +123,16 @@ class Model:
         free = np.ones(self.n_dofs, dtype=np.bool_)
         free[self.dirichlet] = False
         self.free = np.flatnonzero(free)
-        self._bc_hit, self._bc_diag = self.pattern.positions(self.dirichlet)
+        self._bc_hit, self._bc_diag = self._dirichlet_positions()
+
+    def _dirichlet_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where the prescribed rows and columns, and their diagonals, are in the matrix's data."""
+        return self.pattern.positions(self.dirichlet)
+
+    def _constant_forces(self, u: np.ndarray) -> np.ndarray:
+        """The constant groups' internal forces K_const u (n_dofs,)."""
+        assert self._const_matrix is not None
+        return self._const_matrix @ u
 
     def initial_unknowns(self) -> np.ndarray:
         """The global vector at t = 0: zero displacements, the groups' initial extra unknowns."""
@@ -189,7 +203,7 @@ class Model:
         self.refresh_structure()
         if self._const_data is not None and self._const_matrix is not None:
             data = self._const_data.copy()
-            f_int = self._const_matrix @ u
+            f_int = self._constant_forces(u)
         else:
             data, f_int = np.zeros(self.pattern.nnz), np.zeros(self.n_dofs)
         if self._const_force is not None:

@@ -72,7 +72,10 @@ def system(built, comm, u: np.ndarray) -> dict:
     probe = lay.from_vec(lay.to_vec(np.arange(1.0, lay.n + 1.0)))
     ghost_error = comm.allreduce(float(np.abs(probe[lay.local] - (lay.local + 1.0)).max(initial=0.0)), op=MPI.MAX)
     n_ghosts = comm.gather(int(lay.local.shape[0] - lay.owned.shape[0]), root=0)
-    out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error)}
+    # the rank's matrix is numbered on its local dofs only: its pattern has a row per local dof
+    rows_of_pattern = comm.allreduce(int(model.pattern.n != lay.local.shape[0]))
+    out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error),
+           "pattern_not_local": np.array(rows_of_pattern)}
     if comm.rank == 0:
         out["rows"] = np.concatenate([p[0] for p in parts])
         out["cols"] = np.concatenate([p[1] for p in parts])

@@ -9,7 +9,9 @@ the groups as the serial model does, on the rank's local dofs, then:
 - the tangent goes into an ``MPIAIJ`` matrix preallocated once from the exact pattern of the owned
   rows (each rank sends the pattern of the rows it touches but does not own to their owners), with
   the local-to-global map of the local dofs; a new nonzero after that is an error, not a
-  reallocation.
+  reallocation. The rank's sparsity pattern is built on its local dofs in PETSc order, so the
+  groups scatter their blocks straight into the local CSR that PETSc takes (one pattern, no map
+  from rockfrac's numbering to PETSc's).
 
 Norms and dot products sum over the owned dofs of every rank (each dof counted once), the
 verdicts of the groups (a failed return, an event, the activation of a surface) are reduced over
@@ -64,37 +66,48 @@ class DistributedModel(Model):
         if n != self.partition.n_dofs:
             raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {n}: its extra dofs "
                              "(rigid-plastic multipliers, nodal cracks' enrichments) are not partitioned")
-        self.layout = self._layout()
+        self._set_layout()
         super().__post_init__()
-        self._local_csr()
         self._matrix = self._preallocated()
 
-    def _layout(self) -> Layout:
-        """The rank's dofs: those its groups' elements touch."""
+    def _set_layout(self) -> None:
+        """The rank's dofs (those its groups' elements touch) and each one's row in the rank's matrix:
+        its place among them in PETSc order (-1: not the rank's)."""
         assert self.partition is not None and self.nodes is not None
         touched = [g.dofs.ravel() for g in self.groups]
-        return Layout(self.comm, self.partition, self.rank,
-                      np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
+        self.layout = Layout(self.comm, self.partition, self.rank,
+                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
+        local = self.layout.local
+        self._row = np.full(self.layout.n, -1, dtype=np.int32 if local.shape[0] < 2**31 else np.int64)
+        self._row[local] = np.arange(local.shape[0])
+
+    def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
+        """The rank's matrix is numbered on its local dofs in PETSc order: its pattern is the local
+        CSR that PETSc takes (no pattern in rockfrac's numbering, no map between the two)."""
+        return self.layout.local.shape[0], self._row
+
+    def _dirichlet_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty  # PETSc zeroes the prescribed rows (apply_dirichlet)
+
+    def _constant_forces(self, u: np.ndarray) -> np.ndarray:
+        assert self._const_matrix is not None
+        out = np.zeros(self.layout.n)
+        out[self.layout.local] = self._const_matrix @ u[self.layout.local]
+        return out
 
     def refresh_structure(self) -> bool:
-        """As the serial model, and then the rank's dofs, their scatters and the preallocated matrix
-        made again: a cut cell of a nodal crack brings its enrichments (every rank at once: the
-        registry's cuts are the same on every rank)."""
-        if not super().refresh_structure():
+        """As the serial model, on the rank's dofs made again first (their scatters, and after the
+        pattern the preallocated matrix): a cut cell of a nodal crack brings its enrichments (every
+        rank at once: the registry's cuts are the same on every rank)."""
+        if tuple(g.structure_version() for g in self.groups) == self._structure:
             return False
         self.layout.destroy()
-        self.layout = self._layout()
-        self._local_csr()
+        self._set_layout()
+        super().refresh_structure()
         self._matrix.destroy()
         self._matrix = self._preallocated()
         return True
-
-    def _local_csr(self) -> None:
-        """The local pattern's rows and columns of the local dofs (in PETSc order), and where each
-        entry comes from in the pattern's data."""
-        PETSc = petsc()
-        indptr, columns, self._slot = self.pattern.restricted(self.layout.local)
-        self._csr = (indptr.astype(PETSc.IntType), columns.astype(PETSc.IntType, copy=False))
 
     def _preallocated(self):
         """The MPIAIJ matrix with the exact pattern of the owned rows, every rank's elements included.
@@ -103,7 +116,7 @@ class DistributedModel(Model):
         columns ascending; only the rows of ghost dofs (the partition's surface) go to their owners,
         which add the columns they bring to those rows."""
         PETSc, lay = petsc(), self.layout
-        indptr, columns = self._csr
+        indptr, columns = self._csr()
         a, b = np.searchsorted(lay.local_petsc, [lay.lo, lay.hi])
         ghost = np.r_[0:a, b:lay.local_petsc.shape[0]]
         lengths = np.diff(indptr)[ghost]
@@ -131,6 +144,12 @@ class DistributedModel(Model):
         mat.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
         return mat
 
+    def _csr(self) -> tuple[np.ndarray, np.ndarray]:
+        """The rank's pattern (local rows and columns in PETSc order) with PETSc's index type."""
+        PETSc = petsc()
+        return (self.pattern.indptr.astype(PETSc.IntType, copy=False),
+                self.pattern.indices.astype(PETSc.IntType, copy=False))
+
     def set_dirichlet(self, dofs: np.ndarray) -> None:
         super().set_dirichlet(dofs)
         owned = self.layout.owned_mask
@@ -146,7 +165,7 @@ class DistributedModel(Model):
         mat = self._matrix
         mat.zeroEntries()
         PETSc = petsc()
-        mat.setValuesLocalCSR(*self._csr, local.matrix.data[self._slot], addv=PETSc.InsertMode.ADD_VALUES)
+        mat.setValuesLocalCSR(*self._csr(), local.matrix.data, addv=PETSc.InsertMode.ADD_VALUES)
         mat.assemble()
         return Assembled(f_int - f_ext, f_int, DistributedMatrix(mat, self.layout),
                          all(v[0] for v in verdicts), sum(v[1] for v in verdicts),

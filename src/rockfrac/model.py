@@ -298,6 +298,10 @@ class Model:
         all of them; an MPI rank: those of its local dofs, owned and ghosts)."""
         return x
 
+    def local_signature(self) -> str:
+        """The SHA-256 of the dofs whose entries :meth:`local_entries` keeps ("" serially: all of them)."""
+        return ""
+
     def from_local_entries(self, values: np.ndarray) -> np.ndarray:
         """The full-length vector whose kept entries are ``values`` (the inverse of :meth:`local_entries`
         on the entries this process reads; ValueError for a vector of another length)."""

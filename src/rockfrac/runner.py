@@ -201,6 +201,10 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
                             f"checkpoint at step {position.count}; rerun with --overwrite")
         saved = mine
         position = _position(mine, out / checkpoint.rank_file(rank))
+    signature = saved.position.get("local_dofs_sha256")
+    if signature is not None and str(signature) != model.local_signature():
+        raise CaseError(f"{out / checkpoint.rank_file(rank)}: --resume: the checkpoint was written for another "
+                        "split of the model over the ranks (this rank's dofs differ); rerun with --overwrite")
     try:  # the vectors' entries this process keeps (an MPI rank: its local dofs')
         whole = model.from_local_entries
         position = replace(position, u=whole(position.u),

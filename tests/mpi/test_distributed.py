@@ -707,6 +707,15 @@ def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path
     assert again.returncode == 0, again.stderr[-2000:]
     assert "resumed from the checkpoint at step 10" in (out / "run.log").read_text()
     assert_same_table(read_csv(out / "history.csv"), whole, "resumed history.csv")
+    # rank 1's file as if written for another split of the dofs (its checksum made right): refused
+    from rockfrac.output import checkpoint
+
+    saved = checkpoint.load(out, checkpoint.rank_file(1))
+    assert saved is not None and str(saved.position["local_dofs_sha256"])
+    position = {**saved.position, "local_dofs_sha256": np.array("0" * 64)}
+    checkpoint.save(out, position, saved.groups, saved.run, saved.case_sha256, "", checkpoint.rank_file(1))
+    refused = rockfrac_on_ranks(2, split, out, "--resume")
+    assert refused.returncode == 2 and refused.stderr.count("another split of the model") == 1, refused.stderr
 
 
 def test_a_paraview_piece_and_a_checkpoint_send_no_whole_vector(tmp_path):

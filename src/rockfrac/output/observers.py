@@ -222,13 +222,15 @@ class Checkpoints(Observer):
                     u_before=None if p.u_before is None else keep(p.u_before))
         states = [g.checkpoint_state() for g in model.groups]
         ranks = {"ranks": float(model.reduce_sum(1))} if model.distributed else {}
+        arrays = position_arrays(p)
+        if model.distributed:  # which dofs the vectors' entries are: resumed only on the same ones
+            arrays["local_dofs_sha256"] = np.array(model.local_signature())
         if self.rank == 0:
             assert self.history is not None
-            checkpoint.save(self.folder, position_arrays(p), states, {**self.counters(), **ranks}, self.case_sha,
+            checkpoint.save(self.folder, arrays, states, {**self.counters(), **ranks}, self.case_sha,
                             self.history.digest())
         else:
-            checkpoint.save(self.folder, position_arrays(p), states, ranks, self.case_sha, "",
-                            checkpoint.rank_file(self.rank))
+            checkpoint.save(self.folder, arrays, states, ranks, self.case_sha, "", checkpoint.rank_file(self.rank))
         model.reduce_sum(0)  # every rank's file is in place before the log says so
         self.log(f"  checkpoint at step {info.step}")
 

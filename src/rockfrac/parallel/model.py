@@ -20,6 +20,7 @@ the ranks, so that Newton and the stepping take the same decisions on every rank
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -246,6 +247,9 @@ class DistributedModel(Model):
 
     def local_entries(self, x: np.ndarray) -> np.ndarray:
         return x[self.layout.local]
+
+    def local_signature(self) -> str:
+        return hashlib.sha256(np.ascontiguousarray(self.layout.local, dtype=np.int64).tobytes()).hexdigest()
 
     def from_local_entries(self, values: np.ndarray) -> np.ndarray:
         local = self.layout.local

@@ -88,6 +88,23 @@ class NewtonResult:
     interrupted: bool = False  # ended by options.should_stop (not converged, nothing wrong)
 
 
+CYCLE_TOL = 1e-9  # relative: residuals this close one period apart are the same iterate again
+
+
+def _cycling(residuals: list[float]) -> bool:
+    """True if the last five residuals are a 2-cycle repeated twice over (r_k = r_{k-2} = r_{k-4} and
+    r_{k-1} = r_{k-3}, to CYCLE_TOL, with r_k != r_{k-1}): the iteration is deterministic, so the
+    iterates have come back to where they were and will go on alternating."""
+    if len(residuals) < 5:
+        return False
+    r = residuals[-5:]
+
+    def same(a: float, b: float) -> bool:
+        return abs(a - b) <= CYCLE_TOL * max(abs(a), abs(b))
+
+    return same(r[4], r[2]) and same(r[2], r[0]) and same(r[3], r[1]) and not same(r[4], r[3])
+
+
 def newton_step(
     model: Model,
     u_n: np.ndarray,
@@ -177,6 +194,12 @@ def newton_step(
                 return result
         if it == options.max_iterations:
             break
+        if _cycling(result.residuals):
+            result.message = (f"iteration {it}: the iterates cycle between two states (relative residuals "
+                              f"{result.residuals[-2]:.3e} and {rel:.3e} twice over): more iterations cannot "
+                              "converge; e.g. a point flipping between its elastic and plastic states")
+            result.u, result.lam = u, u_lam
+            return result
         a = asm.matrix
         lift = np.zeros_like(u)
         lift[dofs_d] = mismatch

@@ -1,0 +1,57 @@
+"""Newton stops as soon as its iterates cycle between two states (they would alternate to the
+iteration limit), and converges as before where they do not."""
+
+import numpy as np
+import pytest
+
+from rockfrac.elements.base import ElementGroup, Evaluation
+from rockfrac.model import Model
+from rockfrac.solve.linear import make_solver
+from rockfrac.solve.newton import Loads, NewtonOptions, _cycling, newton_step
+
+
+class Cubic(ElementGroup):
+    """One element on dofs (0, 1): internal forces (x^3 - 2 x + 2, y) [N], whose Newton iteration
+    from x = 0 alternates 0, 1, 0, 1... (the textbook 2-cycle); y is linear."""
+
+    def __init__(self):
+        self.dofs = np.array([[0, 1]])
+
+    def evaluate(self, u, u_n):
+        x, y = u[0], u[1]
+        fe = np.array([[x**3 - 2.0 * x + 2.0, y]])
+        ke = np.array([[[3.0 * x**2 - 2.0, 0.0], [0.0, 1.0]]])
+        return Evaluation(fe, ke)
+
+
+def solve(line_search: int, x0: float = 0.0):
+    model = Model(1, [Cubic()], np.zeros(0, dtype=np.int64), dim=2)
+    zero = np.zeros(2)
+    loads = Loads(np.zeros(0), np.zeros(0), zero, zero)
+    u0 = np.array([x0, 0.0])
+    options = NewtonOptions(max_iterations=25, line_search=line_search)
+    return newton_step(model, u0, 0.0, 1.0, loads, make_solver("superlu"), options)
+
+
+def test_a_two_cycle_is_stopped_after_two_periods():
+    res = solve(line_search=0)
+    assert not res.converged
+    assert res.residuals == pytest.approx([2.0, 1.0, 2.0, 1.0, 2.0])  # x = 0, 1, 0, 1, 0
+    assert "cycle between two states" in res.message and res.message.startswith("iteration 4:")
+
+
+def test_newton_that_does_not_cycle_converges_as_before():
+    root = -1.7692923542386314  # the real root of x^3 - 2 x + 2
+    res = solve(line_search=3)  # the line search breaks the cycle; the iterates wander, not periodic
+    assert not res.converged and res.iterations == 25 and "no convergence in 25" in res.message
+    res = solve(line_search=0, x0=-2.0)  # quadratic from nearby: no cycle on the way
+    assert res.converged and res.u[0] == pytest.approx(root, rel=1e-12)
+    assert "cycle" not in res.message
+
+
+def test_the_cycle_test():
+    assert _cycling([3.0, 1e-3, 8.8e-5, 1e-3, 8.8e-5, 1e-3, 8.8e-5])
+    assert not _cycling([1e-3, 8.8e-5, 1e-3, 8.8e-5])  # one period is not yet two
+    assert not _cycling([1e-3, 9e-5, 1e-3, 8.8e-5, 1e-3])  # still moving
+    assert not _cycling([1e-3, 1e-3, 1e-3, 1e-3, 1e-3])  # a stall, not a 2-cycle
+    assert not _cycling([0.0, 0.0, 0.0, 0.0, 0.0])

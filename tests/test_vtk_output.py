@@ -241,3 +241,29 @@ def test_pieces_of_a_step_join_into_it(tmp_path):
     assert set(back.cell_data) == set(declared) and set(back.point_data) == {"displacement", "node_id"}
     VtkSeries(tmp_path, rank=0, ranks=2)  # a new series deletes the pieces and the .pvtu
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.pvd"]
+
+
+def test_a_piece_without_a_kind_of_cell_has_every_field_of_the_whole_grid():
+    """An MPI rank's piece with bulk cells only, of a grid whose other pieces hold crack segments:
+    the segments' fields are there, NaN, and every field has the whole grid's dtype (a field some
+    kind of cell lacks is float64 in every piece, as in the serial grid), so the pieces fit one
+    .pvtu; node_id and cell_id are the given ones."""
+    from rockfrac.output.fields import _as_in_the_whole_grid
+
+    nodes = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    bulk = {"stress": np.ones((1, 6)), "region": np.array([3], dtype=np.int32)}
+    piece = step_fields(nodes, np.array([[0, 1, 2, 3]]), "quad4", point_data={"displacement": np.zeros((4, 2))},
+                        bulk_data=bulk)
+    segments = {"jump": np.zeros((5, 2)), "state": np.zeros(5, dtype=np.int8)}
+    out = _as_in_the_whole_grid(piece, [CellKind.BULK], [np.array([7])], np.array([10, 11, 12, 13]),
+                                [bulk, segments])
+    assert set(out.cell_data) == {"stress", "region", "jump", "state", "cell_kind", "cell_id"}
+    assert out.cell_data["region"][0].dtype == np.float64 and out.cell_data["region"][0][0] == 3.0
+    assert np.isnan(out.cell_data["jump"][0]).all() and out.cell_data["jump"][0].shape == (1, 2)
+    assert out.cell_data["state"][0].dtype == np.float64
+    assert out.cell_data["cell_kind"][0].dtype == np.int8 and out.cell_data["cell_id"][0].tolist() == [7]
+    assert out.point_data["node_id"].tolist() == [10, 11, 12, 13]
+    whole = step_fields(nodes, np.array([[0, 1, 2, 3]]), "quad4", point_data={"displacement": np.zeros((4, 2))},
+                        bulk_data=bulk, segments=(np.zeros((5, 2)), np.ones((5, 2))), segment_data=segments)
+    assert {k: v[0].dtype for k, v in whole.cell_data.items()} == \
+        {k: v[0].dtype for k, v in out.cell_data.items() if k != "cell_id"}

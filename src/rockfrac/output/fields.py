@@ -9,7 +9,7 @@ import numpy as np
 
 from rockfrac.fem.planes import MAX_VERTICES, fan_triangles
 from rockfrac.laws.cohesive_params import MODE_PLASTIC
-from rockfrac.output.vtk import CellKind, CrackState, StepFields, piece_of, step_fields
+from rockfrac.output.vtk import CellKind, CrackState, StepFields, step_fields
 
 
 def _bulk_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
@@ -145,11 +145,12 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
                                                                   for k in names}
 
 
-def _surfaces(built, disp: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None, dict, dict]:
+def _surfaces(built, disp) -> tuple[np.ndarray | None, np.ndarray | None, dict, dict]:
     """A general 3D body's embedded crack surfaces: each cut cell's polygon as a fan of triangles
     (vertices (k, 3, 3) [m]), their host cells, their fields (jump and traction in the surface's frame
     (t, n x t, n), strengths, state) and the displacement at their vertices (3k, 3), exact: each vertex
-    is on a cell edge, along which the nodal field is linear. Every MPI rank's, in the serial order."""
+    is on a cell edge, along which the nodal field is linear. Every MPI rank's, in the serial order.
+    disp(nodes): the displacement (k, 3) at mesh nodes (of this rank's cells)."""
     parts = []
     for g in built.embeddeds:
         if g.dim != 3 or g.plane_strain:
@@ -162,7 +163,7 @@ def _surfaces(built, disp: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | 
         b = g.cells[cells[poly].repeat(3), ends.reshape(-1, 2)[corners, 1]]
         w = where.ravel()[corners][:, None]
         rec = g.records()  # the localized cells' in order, with the (t, n x t, n) components
-        mine = {"x": verts.reshape(-1, 3)[tri], "u": ((1.0 - w) * disp[a] + w * disp[b]).reshape(-1, 3, 3),
+        mine = {"x": verts.reshape(-1, 3)[tri], "u": ((1.0 - w) * disp(a) + w * disp(b)).reshape(-1, 3, 3),
                 "host": g.cell_ids[cells][poly],
                 "jump": np.column_stack([rec["jump_t1"], rec["jump_t2"], rec["jump_n"]])[poly],
                 "traction": np.column_stack([rec["T_t1"], rec["T_t2"], rec["T_n"]])[poly],
@@ -187,24 +188,80 @@ def step_output(built, u: np.ndarray) -> StepFields:
 
 
 def step_piece(built, u: np.ndarray) -> StepFields:
-    """This MPI rank's piece of the step's fields: its own bulk cells, interface cells and embedded
-    segments (a collective call; see rockfrac.output.vtk.piece_of). No whole vector travels: the
-    bulk fields are the rank's own cells', the displacement is scattered to the nodes of the piece
-    only (an interface cell's nodes need not be the rank's dofs), and each interface cell's sums
-    over its points come from the ranks holding them to the cell's owner. The embedded segments of
-    every rank are gathered (the cracked cells only), to number them in the serial order."""
-    whole, hosts = _step_output(built, u, whole=False)
-    part, rank = built.partition, built.model.rank
-    keep = []
-    for blocks in whole.cell_data["cell_kind"]:
-        kind = CellKind(int(blocks[0])) if blocks.size else None
-        if kind is CellKind.BULK:
-            keep.append(part.cell_part == rank)
-        elif kind is CellKind.INTERFACE:
-            keep.append(part.interface_part == rank)
-        else:
-            keep.append(part.cell_part[hosts] == rank)
-    return piece_of(whole, keep)
+    """This MPI rank's piece of the step's fields (a collective call): its own bulk cells, interface
+    cells and embedded segments or triangles, on the nodes they use, with the fields ``node_id`` and
+    ``cell_id`` pointing into the whole model's grid (the serial run's), as
+    :func:`rockfrac.output.vtk.piece_of` names them; every piece has every field of that grid.
+
+    Built from the rank's own cells, nothing of the whole mesh's size: the displacement is scattered
+    to the piece's nodes only (an interface cell's nodes need not be the rank's dofs), the bulk
+    fields are the rank's cells', and each interface cell's sums over its points come from the
+    ranks holding them to the cell's owner. The embedded segments and triangles of every rank are
+    gathered (the cracked cells only), to number them in the serial order."""
+    mesh, model = built.mesh, built.model
+    part, rank = built.partition, model.rank
+    own = np.flatnonzero(part.cell_part == rank)
+    own_if = np.flatnonzero(part.interface_part == rank)
+    interfaces = mesh.interfaces[own_if]
+    nodes = np.unique(np.concatenate([mesh.cells[own].ravel(), interfaces.ravel()]))
+    disp = model.values_at(u, (mesh.dim * nodes[:, None] + np.arange(mesh.dim)).ravel()).reshape(-1, mesh.dim)
+
+    def row(a: np.ndarray) -> np.ndarray:  # a mesh node's row in the piece
+        return np.searchsorted(nodes, a)
+
+    segments, seg_hosts, seg_data = _segments(built)
+    triangles, tri_hosts, tri_data, tri_points = _surfaces(built, lambda a: disp[row(a)])
+    seg = np.flatnonzero(part.cell_part[seg_hosts] == rank) if seg_hosts is not None else np.zeros(0, np.int64)
+    tri = np.flatnonzero(part.cell_part[tri_hosts] == rank) if tri_hosts is not None else np.zeros(0, np.int64)
+    bulk = {name: v[own] for name, v in _bulk_fields(built, u, whole=False).items()}
+    inter = ({name: v[own_if] for name, v in _interface_fields(built, u, whole=False).items()}
+             if mesh.interfaces.size else None)
+    corners = (3 * tri[:, None] + np.arange(3)).ravel()
+    piece = step_fields(
+        mesh.nodes[nodes], row(mesh.cells[own]), mesh.cell_type,
+        interfaces=row(interfaces) if own_if.size else None,
+        segments=(segments[0][seg], segments[1][seg]) if segments is not None and seg.size else None,
+        segment_cells=np.searchsorted(own, seg_hosts[seg]) if seg_hosts is not None else None,
+        point_data={"displacement": disp}, bulk_data=bulk, interface_data=inter,
+        segment_data={k: v[seg] for k, v in seg_data.items()} or None,
+        triangles=triangles[tri] if triangles is not None and tri.size else None,
+        triangle_data={k: v[tri] for k, v in tri_data.items()} or None,
+        triangle_point_data={k: v[corners] for k, v in tri_points.items()} or None)
+    n_seg = 0 if seg_hosts is None else seg_hosts.shape[0]
+    node_id = np.concatenate([nodes, mesh.n_nodes + (2 * seg[:, None] + np.arange(2)).ravel(),
+                              mesh.n_nodes + 2 * n_seg + corners]).astype(np.int64)
+    ids = {CellKind.BULK: own, CellKind.INTERFACE: own_if, "line": seg, "triangle": tri}
+    kinds: list = []  # each block's kind; embedded cells are segments ("line") or triangles
+    for (meshio_type, _), k in zip(piece.cells, piece.cell_data["cell_kind"]):
+        kind = CellKind(int(k[0])) if k.size else CellKind.BULK  # only the bulk block may be empty
+        kinds.append(kind if kind is not CellKind.EMBEDDED else "line" if meshio_type == "line" else "triangle")
+    whole = {CellKind.BULK: bulk, CellKind.INTERFACE: inter or {}, "line": seg_data, "triangle": tri_data}
+    present = [CellKind.BULK] + ([CellKind.INTERFACE] if mesh.interfaces.size else []) + \
+        (["line"] if n_seg else []) + (["triangle"] if tri_hosts is not None and tri_hosts.size else [])
+    return _as_in_the_whole_grid(piece, kinds, [ids[k] for k in kinds], node_id,
+                                 [whole[k] for k in present])
+
+
+def _as_in_the_whole_grid(piece: StepFields, kinds: list, cell_ids: list[np.ndarray], node_id: np.ndarray,
+                          whole_kinds: list[dict[str, np.ndarray]]) -> StepFields:
+    """The piece with the fields and dtypes of the whole grid, whose blocks' fields are
+    ``whole_kinds`` (one dict per kind of cell the whole grid has): a field some kind lacks is NaN
+    there and float64 in every piece; empty blocks dropped; node_id and cell_id added."""
+    tails = {name: np.asarray(v).shape[1:] for fields in whole_kinds for name, v in fields.items()}
+    complete = {name for name in tails if all(name in fields for fields in whole_kinds)}
+    keep = [b for b, (_, conn) in enumerate(piece.cells) if conn.shape[0]]
+    cells = [piece.cells[b] for b in keep]
+    data: dict[str, list[np.ndarray]] = {}
+    for name in list(tails) + ["cell_kind"]:
+        blocks = []
+        for b in keep:
+            have = piece.cell_data.get(name)
+            arr = have[b] if have is not None else np.full((piece.cells[b][1].shape[0], *tails[name]), np.nan)
+            blocks.append(arr if name in complete or name == "cell_kind" else np.asarray(arr, dtype=np.float64))
+        data[name] = blocks
+    data["cell_id"] = [np.asarray(cell_ids[b], dtype=np.int64) for b in keep]
+    point_data = dict(piece.point_data, node_id=node_id)
+    return StepFields(piece.points, cells, point_data, data)
 
 
 def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, np.ndarray | None]:
@@ -220,7 +277,7 @@ def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, 
         disp = np.zeros((mesh.n_nodes, mesh.dim))
         disp[nodes] = built.model.values_at(u, dofs).reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
-    triangles, tri_hosts, tri_data, tri_points = _surfaces(built, disp)
+    triangles, tri_hosts, tri_data, tri_points = _surfaces(built, lambda a: disp[a])
     if triangles is not None:
         hosts = tri_hosts  # a general 3D body has no segments
     return step_fields(

@@ -117,7 +117,9 @@ def piece_of(fields: StepFields, keep: Sequence[np.ndarray]) -> StepFields:
     """The part of a step's grid made of the cells ``keep`` (a mask per block): the points they use,
     renumbered, with the point field ``node_id`` (each point's index in the whole grid) and the cell
     field ``cell_id`` (each cell's index in its block of the whole grid). Every field keeps its
-    name, dtype and components, so the pieces of one grid fit together in a .pvtu."""
+    name, dtype and components, so the pieces of one grid fit together in a .pvtu. (The reference of
+    the pieces' format: an MPI run builds its pieces from each rank's own cells,
+    :func:`rockfrac.output.fields.step_piece`, and the tests compare them with this.)"""
     if len(keep) != len(fields.cells):
         raise ValueError(f"{len(keep)} masks for {len(fields.cells)} blocks")
     chosen = [np.flatnonzero(k) for k in keep]

@@ -12,19 +12,21 @@ from rockfrac.laws.cohesive_params import MODE_PLASTIC
 from rockfrac.output.vtk import CellKind, CrackState, StepFields, step_fields
 
 
-def _bulk_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
-    """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region
-    (whole = False: this MPI rank's cells only, the others zero, for its piece; no reduction)."""
-    n_el = built.mesh.cells.shape[0]
+def _bulk_fields(built, u: np.ndarray, cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region;
+    of every cell (summed over the MPI ranks, each cell on one), or of this rank's ``cells`` (sorted,
+    for its piece: no reduction)."""
+    n_el = built.mesh.cells.shape[0] if cells is None else cells.shape[0]
     out = {"stress": np.zeros((n_el, 6)), "plastic_strain": np.zeros((n_el, 6)), "gamma": np.zeros(n_el),
            "localized": np.zeros(n_el, dtype=np.int8), "region": np.zeros(n_el, dtype=np.int32)}
     for k, g in enumerate(built.bulks):
-        out["region"][g.cell_ids] = k
+        rows = g.cell_ids if cells is None else np.searchsorted(cells, g.cell_ids)
+        out["region"][rows] = k
         for name, values in g.cell_fields(u).items():
-            out[name][g.cell_ids] = values
-    if not whole:
+            out[name][rows] = values
+    if cells is not None:
         return out
-    return {name: built.model.reduce_sum(v) for name, v in out.items()}  # each cell on one rank
+    return {name: built.model.reduce_sum(v) for name, v in out.items()}
 
 
 def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp: np.ndarray):
@@ -213,7 +215,7 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     triangles, tri_hosts, tri_data, tri_points = _surfaces(built, lambda a: disp[row(a)])
     seg = np.flatnonzero(part.cell_part[seg_hosts] == rank) if seg_hosts is not None else np.zeros(0, np.int64)
     tri = np.flatnonzero(part.cell_part[tri_hosts] == rank) if tri_hosts is not None else np.zeros(0, np.int64)
-    bulk = {name: v[own] for name, v in _bulk_fields(built, u, whole=False).items()}
+    bulk = _bulk_fields(built, u, own)
     inter = ({name: v[own_if] for name, v in _interface_fields(built, u, whole=False).items()}
              if mesh.interfaces.size else None)
     corners = (3 * tri[:, None] + np.arange(3)).ravel()
@@ -285,7 +287,7 @@ def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, 
         interfaces=mesh.interfaces if mesh.interfaces.size else None,
         segments=segments, segment_cells=hosts,
         point_data={"displacement": disp},
-        bulk_data=_bulk_fields(built, u, whole),
+        bulk_data=_bulk_fields(built, u),
         interface_data=_interface_fields(built, u, whole) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
         triangles=triangles, triangle_data=tri_data or None,

@@ -29,6 +29,18 @@ def paper_case(form: str = "rp", k: float | None = None, **loading) -> dict:
     return {"mesh": {"crack_angle": THETA}, "bulk": {"E": E, "nu": NU}, "cohesive": coh, "loading": load}
 
 
+def pressed_then_pulled(nx: int, ny: int) -> dict:
+    """An elastic block pressed (4 steps; its right side free to bulge), then its right side held
+    from where it is and pulled (8 steps), a checkpoint every 5 steps: a resume inside the second
+    stage, whose start values of the right side come from the end of the first."""
+    return {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": nx, "ny": ny},
+            "materials": [{"region": "bulk", "model": "elastic", "E": 1.5e7, "nu": 0.3}],
+            "stages": [{"name": "press", "steps": 4, "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
+                                                                     "top": {"y": -4e-4}}},
+                       {"name": "pull", "steps": 8, "displacement": {"right": {"x": 2e-4}}}],
+            "output": {"picture": False, "points": False, "checkpoint_every": 5}}
+
+
 def with_law(case: dict, **law) -> dict:
     out = copy.deepcopy(case)
     out["cohesive"].update(law)

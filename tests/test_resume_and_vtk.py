@@ -80,13 +80,9 @@ def test_an_elastic_run_resumes(tmp_path):
     """A model whose only group keeps no state (an elastic solid) resumes from its checkpoint: the
     checkpoint counts its groups (before, it held no group's arrays and the resume refused it as
     written for another model), bit for bit, inside the second of two stages."""
-    d = {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 4, "ny": 8},
-         "materials": [{"region": "bulk", "model": "elastic", "E": 1.5e7, "nu": 0.3}],
-         "stages": [{"name": "press", "steps": 4, "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
-                                                                  "top": {"y": -4e-4}}},
-                    {"name": "pull", "steps": 8, "displacement": {"right": {"x": 2e-4}}}],
-         "output": {"picture": False, "points": False, "checkpoint_every": 5}}
-    case = parse_case(d)
+    from conftest import pressed_then_pulled
+
+    case = parse_case(pressed_then_pulled(4, 8))
     run_case(case, tmp_path / "full")
     assert interrupted_then_resumed(case, tmp_path, at=11).result.completed
     a, b = read_csv(tmp_path / "full" / "history.csv"), read_csv(tmp_path / "cut" / "history.csv")

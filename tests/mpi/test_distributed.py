@@ -36,7 +36,7 @@ from rockfrac.solve.stepping import run_stages  # noqa: E402
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE.parent))
-from conftest import paper_case  # noqa: E402
+from conftest import paper_case, pressed_then_pulled  # noqa: E402
 
 BRAZILIAN = ROOT / "examples" / "rock_tests" / "brazilian"
 TRIAXIAL = ROOT / "examples" / "rock_tests" / "triaxial"
@@ -690,13 +690,7 @@ def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path
     2: the history is the uninterrupted run's and the serial run's. The stage's start values of the
     right side come from the displacement at the end of stage 1, which each rank holds on its own
     dofs only: a checkpoint keeps every rank's own (one rank's for all put the others' at zero)."""
-    case = {"mesh": {"kind": "block", "element": "quad4", "width": 0.04, "height": 0.08, "nx": 6, "ny": 12},
-            "materials": [{"region": "bulk", "model": "elastic", "E": 1.5e7, "nu": 0.3}],
-            "stages": [{"name": "press", "steps": 4, "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
-                                                                     "top": {"y": -4e-4}}},
-                       {"name": "pull", "steps": 8, "displacement": {"right": {"x": 2e-4}}}],
-            "output": {"picture": False, "points": False, "checkpoint_every": 5}}
-    split = case_file(case, tmp_path / "pull.toml", tmp_path / "serial")
+    split = case_file(pressed_then_pulled(6, 12), tmp_path / "pull.toml", tmp_path / "serial")
     out = tmp_path / "mpi"
     first = rockfrac_on_ranks(2, split, out)
     assert first.returncode == 0, first.stderr[-2000:]

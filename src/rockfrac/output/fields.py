@@ -183,12 +183,6 @@ def _surfaces(built, disp) -> tuple[np.ndarray | None, np.ndarray | None, dict, 
             {"displacement": np.vstack([p["u"] for p in parts]).reshape(-1, 3)})
 
 
-def step_output(built, u: np.ndarray) -> StepFields:
-    """The ParaView fields of the committed state at displacement u (on several MPI ranks, the whole
-    model's, a collective call)."""
-    return _step_output(built, u)[0]
-
-
 def step_piece(built, u: np.ndarray) -> StepFields:
     """This MPI rank's piece of the step's fields (a collective call): its own bulk cells, interface
     cells and embedded segments or triangles, on the nodes they use, with the fields ``node_id`` and
@@ -266,30 +260,21 @@ def _as_in_the_whole_grid(piece: StepFields, kinds: list, cell_ids: list[np.ndar
     return StepFields(piece.points, cells, point_data, data)
 
 
-def _step_output(built, u: np.ndarray, whole: bool = True) -> tuple[StepFields, np.ndarray | None]:
-    """The step's fields; whole = False: the bulk fields valid on this MPI rank's cells only (its piece)."""
+def step_output(built, u: np.ndarray) -> StepFields:
+    """The ParaView fields of the committed state at displacement u (on several MPI ranks, the whole
+    model's, a collective call)."""
     mesh = built.mesh
-    if whole:
-        disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
-    else:  # the nodes of this rank's cells and interface cells, each from its owner
-        part, rank = built.partition, built.model.rank
-        nodes = np.unique(np.concatenate([mesh.cells[part.cell_part == rank].ravel(),
-                                          mesh.interfaces[part.interface_part == rank].ravel()]))
-        dofs = (mesh.dim * nodes[:, None] + np.arange(mesh.dim)).ravel()
-        disp = np.zeros((mesh.n_nodes, mesh.dim))
-        disp[nodes] = built.model.values_at(u, dofs).reshape(-1, mesh.dim)
+    disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
-    triangles, tri_hosts, tri_data, tri_points = _surfaces(built, lambda a: disp[a])
-    if triangles is not None:
-        hosts = tri_hosts  # a general 3D body has no segments
+    triangles, _, tri_data, tri_points = _surfaces(built, lambda a: disp[a])
     return step_fields(
         mesh.nodes, mesh.cells, mesh.cell_type,
         interfaces=mesh.interfaces if mesh.interfaces.size else None,
         segments=segments, segment_cells=hosts,
         point_data={"displacement": disp},
         bulk_data=_bulk_fields(built, u),
-        interface_data=_interface_fields(built, u, whole) if mesh.interfaces.size else None,
+        interface_data=_interface_fields(built, u) if mesh.interfaces.size else None,
         segment_data=seg_data or None,
         triangles=triangles, triangle_data=tri_data or None,
         triangle_point_data=tri_points or None,
-    ), hosts
+    )

@@ -145,11 +145,17 @@ class DistributedModel(Model):
         mat.setOption(PETSc.Mat.Option.KEEP_NONZERO_PATTERN, True)
         return mat
 
+    def _build_structure(self) -> None:
+        """The serial model's pattern (here on the local dofs), and its arrays in PETSc's index type,
+        made once for every assembly (the columns are not copied when the types agree)."""
+        super()._build_structure()
+        PETSc = petsc()
+        self._petsc_csr = (self.pattern.indptr.astype(PETSc.IntType, copy=False),
+                           self.pattern.indices.astype(PETSc.IntType, copy=False))
+
     def _csr(self) -> tuple[np.ndarray, np.ndarray]:
         """The rank's pattern (local rows and columns in PETSc order) with PETSc's index type."""
-        PETSc = petsc()
-        return (self.pattern.indptr.astype(PETSc.IntType, copy=False),
-                self.pattern.indices.astype(PETSc.IntType, copy=False))
+        return self._petsc_csr
 
     def set_dirichlet(self, dofs: np.ndarray) -> None:
         super().set_dirichlet(dofs)

@@ -1,5 +1,5 @@
 """Fragmentation: a Brazilian disc with cohesive surfaces on every internal edge, EP against RP, two
-step sizes, run until the load falls below half its peak.
+step sizes, run until the load falls below half its peak (``--stop-fraction``: another fraction).
 
 One command: ``.venv/bin/python benchmarks/fragmentation.py [--specimen disc|grains] [--size S]``
 (the disc: about 15 minutes on 2 cores). ``--specimen grains``: the grain-matrix specimen of
@@ -76,6 +76,12 @@ def grains_case(size: float, runs: Path) -> dict:
                         "stop": {"quantity": "R_top_y", "below_peak_fraction": 0.5}}]}
 
 
+def run_key(rec: dict) -> str:
+    """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
+    stop = rec.get("stop_fraction", 0.5)
+    return f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
@@ -84,6 +90,8 @@ def main() -> None:
     ap.add_argument("--steps", type=int, nargs="+", default=[100, 200])
     ap.add_argument("--displacement", type=float, default=None,
                     help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
+    ap.add_argument("--stop-fraction", type=float, default=0.5,
+                    help="stop once the load falls below this fraction of its peak (0.5)")
     args = ap.parse_args()
     from rockfrac.case.schema import parse_case
     from rockfrac.output.csvout import read_csv
@@ -107,8 +115,10 @@ def main() -> None:
         old = json.loads(saved.read_text())
         if old.get("size") == size:
             default = 1e-4 if args.specimen == "disc" else 1e-3  # the rows before the displacement was a choice
-            record["runs"] = {f"{v['variant']} {v['nominal_steps']} {v.setdefault('displacement_m', default):g}": v
-                              for v in old.get("runs", {}).values() if "variant" in v}
+            for v in old.get("runs", {}).values():
+                if "variant" in v:
+                    v.setdefault("displacement_m", default)
+                    record["runs"][run_key(v)] = v
     for variant in args.variants:
         form = variant.split()[0]
         for steps in args.steps:
@@ -120,6 +130,7 @@ def main() -> None:
             if args.displacement is not None:
                 loaded["y"] = -args.displacement
             stage["max_steps"] = 40 * steps
+            stage["stop"]["below_peak_fraction"] = args.stop_fraction
             for coh in sections:
                 coh["form"] = form
                 if form == "rp":
@@ -145,9 +156,12 @@ def main() -> None:
                 switched = int(h["step"][np.flatnonzero(np.diff(its == 1))[-1] + 1])
             points = sum(g.points.n for g in s.built.cohesives)
             lam = re.search(r"at load factor ([0-9.]+)", s.result.message)
-            ended = ("below half the peak" if "fell below" in s.result.message else
+            below = "half the peak" if args.stop_fraction == 0.5 else f"{args.stop_fraction:g} of the peak"
+            ended = (f"below {below}" if "fell below" in s.result.message else
                      f"no convergence at min_step, load factor {lam.group(1)}" if lam else s.result.message[:60])
             viscous = float(h["D_viscous"][-1]) if "D_viscous" in h else 0.0
+            split = np.flatnonzero(h["n_fragments"] >= 2)  # the first step with the body in pieces
+            pieces = read_csv(out / "fragments.csv") if (out / "fragments.csv").exists() else None
             rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"],
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
@@ -155,16 +169,22 @@ def main() -> None:
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
                    "viscosity": visc if variant == "ep viscous" else None,
-                   "displacement_m": -float(loaded["y"]), "pieces": int(h["n_fragments"][-1]),
+                   "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
+                   "split_step": int(h["step"][split[0]]) if split.size else None,
+                   "split_load_fraction": float(r[split[0]] / r.max()) if split.size else None,
+                   "largest_pieces": [] if pieces is None else  # area (volume) and centroid of each, largest first
+                   [{"size": float(pieces["size"][k]), "x": float(pieces["x"][k]), "y": float(pieces["y"][k])}
+                    for k in range(min(3, pieces["size"].shape[0]))],
                    "u_end_over_peak": float(h[reaction.replace("R_", "u_")][-1]
                                             / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
-            record["runs"][f"{variant} {steps} {rec['displacement_m']:g}"] = rec
+            record["runs"][run_key(rec)] = rec
             print(variant, steps, rec, flush=True)
     order = {"ep": 0, "ep viscous": 1, "rp": 2}
     rows = []
     for rec in sorted(record["runs"].values(),
-                      key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0), r["nominal_steps"])):
+                      key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0), -r.get("stop_fraction", 0.5),
+                                     r["nominal_steps"])):
         v = rec["variant"]
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
         rows.append([v.upper() if v != "ep viscous" else f"EP, viscosity {eta:g}, load control",
@@ -173,12 +193,15 @@ def main() -> None:
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
                      f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec.get("pieces", "-"),
                      f"{1e3 * rec['separated_m']:.1f}" if "separated_m" in rec else "-",
-                     f"{rec['u_end_over_peak']:.2f}" if "u_end_over_peak" in rec else "-", rec["ended"],
+                     f"{rec['u_end_over_peak']:.2f}" if "u_end_over_peak" in rec else "-",
+                     f"{rec['split_step']} ({rec['split_load_fraction']:.2f})" if rec.get("split_step") else "-",
+                     rec["ended"],
                      f"{rec['date']}, {rec['load_average']:.2f}"])
     lines = markdown_table(["form", "nominal steps", "displacement [mm]", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
                             "D (law) [J/m]", "D (viscous) [J/m]", "pieces", "separated [mm]",
-                            "u end / u at peak", "ended", "ran (date, load)"], rows)
+                            "u end / u at peak", "in pieces from step (F / peak)", "ended", "ran (date, load)"],
+                           rows)
     publish(name, record, lines)
 
 

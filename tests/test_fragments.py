@@ -105,7 +105,7 @@ def pulled_block(fraction: float | None) -> dict:
 def test_the_separated_fraction_sets_when_a_pair_lets_go(tmp_path):
     """With [output] separated_fraction = 0.5 the block falls in two once its surfaces have lost half
     their strength, at half the peak load (the bilinear law: the load falls with the strength); with
-    the default 1 %, at 1 % of it. The fraction is checked."""
+    the default 1 %, at 1 % of it; run.log names the step and the pieces. The fraction is checked."""
     loads = {}
     for fraction in (None, 0.5):
         run_case(parse_case(pulled_block(fraction)), tmp_path / str(fraction))
@@ -114,8 +114,33 @@ def test_the_separated_fraction_sets_when_a_pair_lets_go(tmp_path):
         first = int(np.argmax(h["n_fragments"] == 2))
         assert h["n_fragments"][first - 1] == 1 and h["n_fragments"][-1] == 2
         loads[fraction] = (r[first - 1] / r.max(), r[first] / r.max())
+        log = (tmp_path / str(fraction) / "run.log").read_text()  # the step it broke, and the pieces at the end
+        assert [line for line in log.splitlines() if "fragments" in line] == [
+            f"  fragments at step {int(h['step'][first])}: the body is in 2 pieces (was 1), "
+            f"separated = {h['separated'][first]:.6g}",
+            "fragments: the body ends in 2 pieces of 0.0004, 0.0004 m^2 (fragments.csv)"]
     assert loads[0.5][1] <= 0.5 + 1e-9 and loads[0.5][0] > 0.5  # it lets go in the step that crosses half
     assert loads[None][1] <= 0.01 + 1e-9 and loads[None][0] > 0.01
     for bad in (0.0, 1.0, -0.1, "half"):
         with pytest.raises(CaseError, match="separated_fraction"):
             parse_case(pulled_block(bad), "c.toml")  # type: ignore[arg-type]
+
+
+def test_a_resumed_run_logs_the_break_as_the_uninterrupted_one(tmp_path):
+    """Resumed from a checkpoint after the block broke, run.log says what the uninterrupted run's says:
+    the break once, not again at the first resumed step (the pieces at the checkpoint come from its
+    history)."""
+    from test_resume_and_vtk import interrupted_then_resumed
+
+    d = pulled_block(0.5)
+    run_case(parse_case(d), tmp_path / "full")
+    h = read_csv(tmp_path / "full" / "history.csv")
+    broke = int(h["step"][np.argmax(h["n_fragments"] == 2)])
+    d["output"]["checkpoint_every"] = broke + 1
+    interrupted_then_resumed(parse_case(d), tmp_path, at=broke + 3)
+
+    def lines(folder: str) -> list[str]:
+        return [x for x in (tmp_path / folder / "run.log").read_text().splitlines() if "fragments" in x]
+
+    assert lines("cut") == lines("full") and len(lines("full")) == 2
+    assert f"resumed from the checkpoint at step {broke + 1}" in (tmp_path / "cut" / "run.log").read_text()

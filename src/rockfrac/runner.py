@@ -26,7 +26,7 @@ from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
 from rockfrac.mesh.interfaces import looped_pairs
 from rockfrac.output import checkpoint
-from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, rows_digest
+from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, read_csv, rows_digest
 from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
 from rockfrac.output.observers import (
     Checkpoints,
@@ -151,6 +151,18 @@ def make_history(built: Built, path: str = "<case>") -> History:
             raise CaseError(f"{path}: [stages {k + 1}] stop.quantity: {stop.quantity!r} is not a history column "
                             f"(reactions: {example or 'none'})")
     return history
+
+
+def _pieces_at(history: Path, step: int | None) -> int:
+    """The body's pieces (history.csv's n_fragments) at a resumed run's checkpoint step (1: a new run,
+    or a history without the column)."""
+    if step is None:
+        return 1
+    rows = read_csv(history)
+    if "n_fragments" not in rows:
+        return 1
+    at = np.flatnonzero(rows["step"] == step)
+    return int(rows["n_fragments"][at[-1]]) if at.size else 1
 
 
 def _resume(out: Path, built: Built, case_text: str, rank: int = 0) -> tuple[Position, dict]:
@@ -296,7 +308,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             sent[k] = len(lines)
 
     gather_events()
-    log: RunLog | Quiet = RunLog(out / "run.log", keep, lambda: events) if lead else Quiet()
+    log: RunLog | Quiet = (RunLog(out / "run.log", keep, lambda: events, _pieces_at(out / "history.csv", keep))
+                           if lead else Quiet())
     observers: list[Observer] = []
     try:
         hist = HistoryCsv(out / "history.csv", history.columns, keep) if lead else None
@@ -412,6 +425,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
     if isinstance(solver, Handover) and solver.failed:
         log(f"linear solver: {solver.first.name} failed ({solver.failed}); {solver.then.name} solved from then on")
+    if history.pieces is not None and history.pieces.count > 1:
+        sizes = ", ".join(f"{v:.4g}" for v in history.pieces.size[:3]) + (", ..." if history.pieces.count > 3 else "")
+        log(f"fragments: the body ends in {history.pieces.count} pieces of {sizes} "
+            f"{'m^3' if built.mesh.dim == 3 else 'm^2'} (fragments.csv)")
     if history.viscous:
         total = history.dissipated()
         log(f"viscous regularisation: D_viscous = {history.viscous_dissipated():.6g} of D_dissipated = {total:.6g} "

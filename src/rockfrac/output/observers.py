@@ -126,11 +126,13 @@ class Quiet(Observer):
 class RunLog(Observer):
     """run.log, line-buffered: one line per step, the Newton iterations, events, checkpoints."""
 
-    def __init__(self, path: Path, resume_at: int | None, events: Callable[[], list[str]]):
+    def __init__(self, path: Path, resume_at: int | None, events: Callable[[], list[str]], pieces: int = 1):
+        """pieces: the body's pieces at the start (a resumed run's, at its checkpoint)."""
         self.fh = _open_log(path, resume_at)
         self.events = events
         self.n_events = len(events()) if resume_at is not None else 0
         self.quantity = None  # the column the step line shows, besides the load factor
+        self.pieces = pieces  # n_fragments of the last step logged
 
     def __call__(self, msg: str) -> None:
         if not self.fh.closed:
@@ -148,6 +150,12 @@ class RunLog(Observer):
             kind, _, text = line.partition(": ")
             self(f"  {kind} at step {info.step}: {text}")
         self.n_events = len(lines)
+        pieces = row.get("n_fragments")
+        if pieces is not None and int(pieces) != self.pieces:
+            self(f"  fragments at step {info.step}: the body is in {int(pieces)} pieces (was {self.pieces}), "
+                 f"separated = {row['separated']:.6g}")
+        if pieces is not None:
+            self.pieces = int(pieces)
 
     def close(self) -> None:
         self.fh.close()

@@ -115,6 +115,7 @@ def test_the_separated_fraction_sets_when_a_pair_lets_go(tmp_path):
         assert h["n_fragments"][first - 1] == 1 and h["n_fragments"][-1] == 2
         loads[fraction] = (r[first - 1] / r.max(), r[first] / r.max())
         log = (tmp_path / str(fraction) / "run.log").read_text()  # the step it broke, and the pieces at the end
+        assert "model: 8 quad4 cells, 32 nodes, 10 interface cells, 64 unknowns" in log  # split on every edge
         assert [line for line in log.splitlines() if "fragments" in line] == [
             f"  fragments at step {int(h['step'][first])}: the body is in 2 pieces (was 1), "
             f"separated = {h['separated'][first]:.6g}",

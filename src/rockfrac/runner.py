@@ -8,6 +8,7 @@ ParaView series, the log, checkpoints, stop rules and progress each see every co
 from __future__ import annotations
 
 import csv
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -95,6 +96,7 @@ def case_warnings(built: Built) -> list[str]:
         # for surfaces on many edges
         length = float(np.ptp(built.mesh.nodes[:, 1])) if coh.where.value == "crack" else mean_cell_size(built.mesh)
         kn, kt = given(coh.kn, "kn"), given(coh.kt, "kt")
+        which = f" ({group.name})" if len(built.case.cohesive_sets) > 1 else ""  # one line per set: named
         k = min(kn, kt)
         need = penalty_rule(e_plane, length, PENALTY_ACCURACY)
         if k < need:
@@ -102,12 +104,12 @@ def case_warnings(built: Built) -> list[str]:
             out.append(f"EP CSE penalty kn, kt = {kn:.3g}, {kt:.3g} Pa/m: k L/E' = {1 / x:.3g} (L = {length:g} m), "
                        f"so the penalty may add up to {100 * x:.3g} % of the bulk's compliance (pre-peak stiffness "
                        f"up to {100 * x / (1 + x):.3g} % too low); k >= {need:.3g} Pa/m keeps the error below "
-                       f"{100 * PENALTY_ACCURACY:g} % (rockfrac penalty-study)")
+                       f"{100 * PENALTY_ACCURACY:g} % (rockfrac penalty-study){which}")
         soft = group.law.softening_modulus()
         if k < soft:
             out.append(f"EP CSE penalty {k:.3g} Pa/m is below the law's softening slope (~{soft:.3g} Pa/m): the "
                        "traction law may have no unique return (the material point snaps back); raise kn, kt or "
-                       "use form = 'rp'")
+                       f"use form = 'rp'{which}")
     return out
 
 
@@ -155,14 +157,13 @@ def make_history(built: Built, path: str = "<case>") -> History:
 
 def _pieces_at(history: Path, step: int | None) -> int:
     """The body's pieces (history.csv's n_fragments) at a resumed run's checkpoint step (1: a new run,
-    or a history without the column)."""
+    or a history without the column or without its value: a model without cohesive surfaces)."""
     if step is None:
         return 1
     rows = read_csv(history)
-    if "n_fragments" not in rows:
-        return 1
     at = np.flatnonzero(rows["step"] == step)
-    return int(rows["n_fragments"][at[-1]]) if at.size else 1
+    value = float(rows["n_fragments"][at[-1]]) if "n_fragments" in rows and at.size else math.nan
+    return int(value) if math.isfinite(value) else 1
 
 
 def _resume(out: Path, built: Built, case_text: str, rank: int = 0) -> tuple[Position, dict]:
@@ -359,11 +360,16 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         observers.append(StopRules(built.program.stops, peaks))
         if start is not None:
             log(f"resumed from the checkpoint at step {start.count}")
+        mesh = built.mesh
+        log(f"model: {mesh.cells.shape[0]} {mesh.cell_type} cells, {mesh.n_nodes} nodes"
+            + (f", {mesh.interfaces.shape[0]} interface cells" if mesh.interfaces.size else "")
+            + f", {model.n_dofs} unknowns")
         for note in built.program.notes + history.notes:
             log(note)
-        for c in case.cohesive_sets:
+        for k, c in enumerate(case.cohesive_sets):
             if c.viscosity is not None:
-                log(f"cohesive surfaces ({c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
+                which = f"cohesive {k + 1}, " if len(case.cohesive_sets) > 1 else ""
+                log(f"cohesive surfaces ({which}{c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
                     f"{c.viscosity:g} (pseudo-time, a stage = 1); its extra dissipation is history.csv's D_viscous")
         if distribution is not None:
             log(f"MPI: {model.reduce_sum(1)} ranks, the mesh split by METIS ({built.mesh.cells.shape[0]} cells, "

@@ -229,3 +229,18 @@ def test_api_keeps_the_fields_of_the_steps_asked_for(tmp_path):
         rf.run(case, tmp_path / "none").cell_stress(step=1)
     with pytest.raises(CaseError, match="fields_every = -1: a whole number"):
         rf.run(case, tmp_path / "bad", fields_every=-1)
+
+
+@pytest.mark.parametrize("pin", ["bottom_left", "bottom"])
+def test_a_loading_pin_on_the_support_holds_it_in_x_and_y(pin):
+    """[loading] pin = support (a base held in x and y) holds both components of every base node; it
+    used to replace the support's y (the group was a key twice), leaving the base free to move."""
+    d = {"mesh": {"kind": "block", "width": W, "height": H, "nx": 2, "ny": 4}, "bulk": {"E": E, "nu": NU},
+         "loading": {"confinement": 1e5, "axial_displacement": 1e-4, "axial_steps": 1, "pin": pin},
+         "output": {"picture": False}}
+    built = build(parse_case(d, "c.toml"))
+    bottom, corner = built.mesh.node_sets["bottom"], built.mesh.node_sets["bottom_left"]
+    held = set(built.stages[0].dirichlet.tolist())
+    assert set((2 * bottom + 1).tolist()) <= held  # the support, whatever the pin
+    assert (set((2 * bottom).tolist()) <= held) == (pin == "bottom")
+    assert set((2 * corner).tolist()) <= held

@@ -64,13 +64,13 @@ def expand_loading(case: Case, mesh: Mesh, path: str) -> list[tuple[StageSection
     load = given(case.loading, "[loading]")
     for key in ("support", "pin", "axial"):
         require([getattr(load, key)], mesh.node_sets, "node group", f"[loading] {key}", path)
-    held = {load.support: {"y": 0.0}, load.pin: {"x": 0.0}, load.axial: {"y": 0.0}}
+    held = [(load.support, {"y": 0.0}), (load.pin, {"x": 0.0}), (load.axial, {"y": 0.0})]
     if mesh.dim == 3:  # plane strain: both out-of-plane faces held in their normal direction
         require(["back", "front"], mesh.node_sets, "node group",
                 "[mesh] (3D plane strain needs the out-of-plane faces)", path)
-        held.update({"back": {"z": 0.0}, "front": {"z": 0.0}})
+        held += [("back", {"z": 0.0}), ("front", {"z": 0.0})]
     displacement: dict[str, dict] = {}
-    for group, comps in held.items():
+    for group, comps in held:  # one group may be named twice (pin = support: a base held in x and y)
         displacement.setdefault(group, {}).update(comps)
     sides = mesh.edge_sets if mesh.dim == 2 else mesh.face_sets
     require(load.pressure, sides, "boundary group", "[loading] pressure", path)

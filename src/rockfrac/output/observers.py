@@ -150,12 +150,12 @@ class RunLog(Observer):
             kind, _, text = line.partition(": ")
             self(f"  {kind} at step {info.step}: {text}")
         self.n_events = len(lines)
-        pieces = row.get("n_fragments")
-        if pieces is not None and int(pieces) != self.pieces:
-            self(f"  fragments at step {info.step}: the body is in {int(pieces)} pieces (was {self.pieces}), "
-                 f"separated = {row['separated']:.6g}")
-        if pieces is not None:
-            self.pieces = int(pieces)
+        if "n_fragments" in row:  # a mesh with cohesive surfaces
+            pieces = int(row["n_fragments"])
+            if pieces != self.pieces:
+                self(f"  fragments at step {info.step}: the body is in {pieces} pieces (was {self.pieces}), "
+                     f"separated = {row['separated']:.6g}")
+            self.pieces = pieces
 
     def close(self) -> None:
         self.fh.close()

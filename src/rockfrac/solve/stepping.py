@@ -10,6 +10,14 @@ ellipticity of a Drucker-Prager cell) crosses zero is shortened to end at the ev
 converged step is committed and handed to ``on_step``; a failed
 step is retried with a smaller increment down to ``min_step``, where the run stops cleanly,
 keeping every converged step.
+
+After an easy step the increment grows back (by ``grow``, up to the nominal one). Easy is judged on
+Newton's iterations without an active-set change: a constraint switched on or off (a rigid-plastic
+cohesive point between constrained and plastic, an embedded crack between sticking and sliding).
+With many rigid-plastic surfaces yielding, points switch in most iterations of a step whatever its
+size, so counting those iterations kept a cut-back step small for the rest of the run. Elasto-plastic
+(penalty) points have no constraint to switch; growing after their elastic-plastic changes too made
+more steps fail on the fragmenting disc (benchmarks/README.md, "Step growth").
 """
 
 from __future__ import annotations
@@ -73,7 +81,7 @@ class SteppingOptions:
     cutback: float = 0.5
     min_step: float = 1e-4  # smallest increment, as a fraction of the nominal one
     grow: float = 1.5  # increment growth after an easy step, up to the nominal one
-    easy_iterations: int = 6
+    easy_iterations: int = 6  # a step is easy if its iterations without an active-set switch are at most this
     event_tol: float = 1e-4  # a step may end this far past an event (indicator in [-tol, 0])
     locate_activation: bool = False  # end a load step where a surface first yields (its peak)
     fallback: str = "none"  # "implex": a step failing at min_step switches EP surfaces to IMPL-EX
@@ -127,8 +135,10 @@ class StopRun(Exception):
 
 
 def _log_iterations(log, name: str, step: int, res: NewtonResult) -> None:
-    for k, (rr, ee) in enumerate(zip(res.residuals, [np.nan] + res.energies)):
-        log(f"  {name} step {step} it {k}: residual {rr:.3e} energy {ee:.3e}")
+    switched = res.switched + [0] * (len(res.residuals) - len(res.switched))
+    for k, (rr, ee, n) in enumerate(zip(res.residuals, [np.nan] + res.energies, switched)):
+        change = f", {n} points switched" if k and n else ""
+        log(f"  {name} step {step} it {k}: residual {rr:.3e} energy {ee:.3e}{change}")
 
 
 def run_stages(
@@ -287,7 +297,7 @@ def run_stages(
             count += 1
             stage_steps += 1
             step_cutbacks, cutbacks = cutbacks, 0
-            if res.iterations <= stepping.easy_iterations:
+            if res.iterations - res.switching_iterations <= stepping.easy_iterations:
                 grow = stepping.grow
                 if implex is not None:  # IMPL-EX: no faster than its error allows
                     grow = min(grow, 0.8 * stepping.implex_tol / max(implex, 1e-300))

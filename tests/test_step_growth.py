@@ -1,6 +1,6 @@
 """Step growth after a cutback: judged on Newton's iterations without an active-set change.
 
-With many rigid-plastic cohesive points yielding, points switch (constrained <-> plastic) in most
+With many cohesive points yielding, points switch (elastic or constrained <-> plastic) in most
 iterations of a step whatever its size; counting those iterations against growth kept a cut-back
 step small for the rest of a run (benchmarks/README.md, "Step growth")."""
 
@@ -124,3 +124,20 @@ def test_rp_cohesive_points_report_their_constraint_switches():
     assert group.evaluate(opened, u_n).n_switched == n  # every point turns plastic
     assert group.evaluate(opened, u_n).n_switched == 0  # the same iterate again
     assert group.evaluate(u_n, u_n).n_switched == n  # and back to constrained
+
+
+def test_ep_cohesive_points_report_their_switches():
+    d = tomllib.loads((ROOT / "examples" / "paper" / "cse_ep_k1e9.toml").read_text())
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    built = build(parse_case(d, "ep.toml"))
+    group = built.cohesives[0]
+    n = group.points.n
+    u_n = np.zeros(built.model.n_dofs)
+    opened = u_n.copy()
+    normal = group.points.frame[:, 1, :]
+    for a in range(2):  # 1 mm of opening: trial tractions of kn x 1 mm >> chi_p
+        opened[2 * group.points.plus + a] = 1e-3 * normal[:, a]
+    assert group.evaluate(u_n, u_n).n_switched == 0
+    assert group.evaluate(opened, u_n).n_switched == n  # every point turns plastic
+    assert group.evaluate(opened, u_n).n_switched == 0
+    assert group.evaluate(u_n, u_n).n_switched == n  # and back to elastic

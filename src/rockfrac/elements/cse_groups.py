@@ -318,6 +318,7 @@ class CohesiveEP(_CohesiveGroup):
         n, nd = pts.n, 2 * self.dim
         fe = np.empty((n, nd))
         ke = np.empty((n, nd, nd))
+        mode_prev = self.trial[:, self.mode].copy()  # the previous iterate's (a change is a switch)
         committed = self.state
         if self.viscosity > 0.0:  # an overstressed point returns even at zero jump increment (the laws'
             committed = self.state.copy()  # shortcut for committed plastic points would keep the overstress)
@@ -335,7 +336,8 @@ class CohesiveEP(_CohesiveGroup):
                                 np.int64(self.mode), self._t_bar, fe, ke)
         bad = np.flatnonzero(self.status < 0)
         msg = f"EP traction law failed at interface points {bad[:5].tolist()}" if bad.size else ""
-        return Evaluation(fe, ke, ok=not bad.size, message=msg)
+        switched = int(np.count_nonzero(self.trial[:, self.mode] != mode_prev))
+        return Evaluation(fe, ke, ok=not bad.size, n_switched=switched, message=msg)
 
 
 class CohesiveRP(_CohesiveGroup):

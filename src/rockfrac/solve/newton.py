@@ -14,9 +14,9 @@ norm |du_(k-1) . r_k| (the work of the current residual on the last correction, 
 of the largest so far) below tolerance, element-level equations of condensed unknowns (the
 embedded jumps) met to the residual tolerance, and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
-Every iteration is logged, with the number of points whose constraint its iterate switched on or off
-(an active-set change: a rigid-plastic cohesive point between constrained and plastic, an embedded
-crack between sticking and sliding), which the step control reads (:mod:`rockfrac.solve.stepping`).
+Every iteration is logged, with the number of points whose state its iterate switched (an active-set
+change: a cohesive point between elastic or constrained and plastic, an embedded crack between
+sticking and sliding), which the step control reads (:mod:`rockfrac.solve.stepping`).
 
 The norms and dot products of the convergence test are the model's (:meth:`rockfrac.model.Model.dot`):
 a serial compiled loop, or sums over the ranks of a distributed model.
@@ -88,11 +88,11 @@ class NewtonResult:
     time_assembly: float = 0.0  # seconds in residual/tangent assembly (constitutive updates included)
     time_solve: float = 0.0  # seconds in factorization and triangular solves
     interrupted: bool = False  # ended by options.should_stop (not converged, nothing wrong)
-    switched: list[int] = field(default_factory=list)  # points whose constraint switched at each iterate
+    switched: list[int] = field(default_factory=list)  # points whose state switched at each iterate (active set)
 
     @property
     def switching_iterations(self) -> int:
-        """The iterations whose iterate switched a point's constraint on or off (an active-set change)."""
+        """The iterations whose iterate switched a point's state (an active-set change)."""
         return sum(1 for n in self.switched[1:] if n)
 
 

@@ -12,12 +12,10 @@ step is retried with a smaller increment down to ``min_step``, where the run sto
 keeping every converged step.
 
 After an easy step the increment grows back (by ``grow``, up to the nominal one). Easy is judged on
-Newton's iterations without an active-set change: a constraint switched on or off (a rigid-plastic
-cohesive point between constrained and plastic, an embedded crack between sticking and sliding).
-With many rigid-plastic surfaces yielding, points switch in most iterations of a step whatever its
-size, so counting those iterations kept a cut-back step small for the rest of the run. Elasto-plastic
-(penalty) points have no constraint to switch; growing after their elastic-plastic changes too made
-more steps fail on the fragmenting disc (benchmarks/README.md, "Step growth").
+Newton's iterations without an active-set change (a cohesive point switching between elastic or
+constrained and plastic, an embedded crack between sticking and sliding). With many surfaces
+yielding, points switch in most iterations of a step whatever its size, so counting those
+iterations kept a cut-back step small for the rest of the run (benchmarks/README.md, "Step growth").
 """
 
 from __future__ import annotations

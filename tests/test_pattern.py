@@ -92,23 +92,3 @@ def test_a_hex_box_pattern_equals_the_sorted_one():
     a = Pattern.build(n, [dofs])
     same(a, Pattern.build_sorted(n, [dofs]))
     assert np.diff(a.indptr).max() == 81  # an inner node: 27 nodes x 3 dofs
-
-
-def test_restricted_pattern_is_the_submatrix_in_the_given_order():
-    """Pattern.restricted(local): the rows and columns ``local`` in the order of ``local`` (the
-    distributed model's local dofs in PETSc order), each row ascending, each entry's slot the
-    pattern's data index of that (row, column): equal to slicing the whole slot matrix."""
-    rng = np.random.default_rng(7)
-    n = 60
-    groups = [rng.integers(0, 40, size=(25, 4)), rng.integers(10, 45, size=(10, 6))]  # dofs 45..59 untouched
-    pattern = Pattern.build(n, groups)
-    local = rng.permutation(np.unique(np.concatenate([g.ravel() for g in groups])))
-    indptr, columns, slot = pattern.restricted(local)
-    slots = pattern.matrix(np.arange(1.0, pattern.nnz + 1.0))
-    expected = slots[local][:, local].tocsr()
-    expected.sort_indices()
-    assert np.array_equal(indptr, expected.indptr)
-    assert np.array_equal(columns, expected.indices)
-    assert np.array_equal(slot, expected.data.astype(np.int64) - 1)
-    with pytest.raises(ValueError, match="outside"):
-        pattern.restricted(local[1:])  # a row whose columns are not all local

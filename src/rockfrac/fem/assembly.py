@@ -98,21 +98,6 @@ class Pattern:
         mark[np.asarray(rows, dtype=np.int64)] = True
         return _marked_positions(self.indptr, self.indices, mark)
 
-    def restricted(self, local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The pattern on the rows and columns ``local`` (every column of those rows must be one of
-        them), renumbered by position in ``local``: (indptr, columns ascending in each row, and each
-        entry's slot in this pattern's data). No array of the whole pattern is made."""
-        local = np.asarray(local, dtype=np.int64)
-        pos = np.full(self.n, -1, dtype=np.int32 if local.shape[0] < 2**31 else np.int64)
-        pos[local] = np.arange(local.shape[0])
-        indptr = np.zeros(local.shape[0] + 1, dtype=np.int64)
-        np.cumsum(self.indptr[local + 1] - self.indptr[local], out=indptr[1:])
-        columns = np.empty(int(indptr[-1]), dtype=pos.dtype)
-        slot = np.empty(int(indptr[-1]), dtype=np.int32 if self.indices.shape[0] < 2**31 else np.int64)
-        if not _restrict_rows(self.indptr, self.indices, local, pos, indptr, columns, slot):
-            raise ValueError("a row of the restriction has a column outside it")
-        return indptr, columns, slot
-
 
 @kernel
 def scatter_matrix(data: np.ndarray, slots: np.ndarray, ke: np.ndarray) -> None:
@@ -131,25 +116,6 @@ def scatter_vector(f: np.ndarray, dofs: np.ndarray, fe: np.ndarray) -> None:
     for e in range(n_el):
         for i in range(nd):
             f[dofs[e, i]] += fe[e, i]
-
-
-@kernel
-def _restrict_rows(indptr, indices, local, pos, new_ptr, columns, slot) -> bool:
-    """Fill the rows ``local`` of a pattern renumbered by ``pos`` (see Pattern.restricted), each row
-    sorted by its new columns; False where a column has no new number."""
-    for i in range(local.shape[0]):
-        r, k = local[i], new_ptr[i]
-        for j in range(indptr[r], indptr[r + 1]):
-            c = pos[indices[j]]
-            if c < 0:
-                return False
-            columns[k], slot[k] = c, j
-            k += 1
-        a = new_ptr[i]
-        order = np.argsort(columns[a:k])
-        columns[a:k] = columns[a:k][order]
-        slot[a:k] = slot[a:k][order]
-    return True
 
 
 # --------------------------------------------------------------------------------------------

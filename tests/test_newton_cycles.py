@@ -24,8 +24,16 @@ class Cubic(ElementGroup):
         return Evaluation(fe, ke)
 
 
-def solve(line_search: int, x0: float = 0.0):
-    model = Model(1, [Cubic()], np.zeros(0, dtype=np.int64), dim=2)
+class SwitchingCubic(Cubic):
+    """The same, reporting two points switched at every evaluation (an active set that never settles)."""
+
+    def evaluate(self, u, u_n):
+        ev = super().evaluate(u, u_n)
+        return Evaluation(ev.fe, ev.ke, n_switched=2)
+
+
+def solve(line_search: int, x0: float = 0.0, group=Cubic):
+    model = Model(1, [group()], np.zeros(0, dtype=np.int64), dim=2)
     zero = np.zeros(2)
     loads = Loads(np.zeros(0), np.zeros(0), zero, zero)
     u0 = np.array([x0, 0.0])
@@ -55,3 +63,12 @@ def test_the_cycle_test():
     assert not _cycling([1e-3, 9e-5, 1e-3, 8.8e-5, 1e-3])  # still moving
     assert not _cycling([1e-3, 1e-3, 1e-3, 1e-3, 1e-3])  # a stall, not a 2-cycle
     assert not _cycling([0.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_a_failure_says_when_the_active_set_does_not_settle():
+    for line_search in (0, 3):  # a cycle, and no convergence in 25 iterations
+        plain, switching = solve(line_search), solve(line_search, group=SwitchingCubic)
+        assert not plain.converged and not switching.converged
+        assert "active set" not in plain.message
+        assert switching.message == plain.message + (
+            "; 2 points switched in each of the last 4 iterations: the active set does not settle")

@@ -57,7 +57,7 @@ def test_newton_counts_the_iterations_that_switch_a_point():
     assert res.switched == [0, 1, 0] and res.iterations == 2 and res.switching_iterations == 1
     lines: list[str] = []
     stepping._log_iterations(lines.append, "pull", 1, res)
-    assert lines[1].endswith(", 1 points switched") and "switched" not in lines[0] + lines[2]
+    assert lines[1].endswith(", 1 point switched") and "switched" not in lines[0] + lines[2]
 
 
 def grown_sizes(monkeypatch, switching: int) -> list[float]:

@@ -113,6 +113,25 @@ def _cycling(residuals: list[float]) -> bool:
     return same(r[4], r[2]) and same(r[2], r[0]) and same(r[3], r[1]) and not same(r[4], r[3])
 
 
+UNSETTLED = 4  # the last iterations looked at for an active set that does not settle
+
+
+def points(n: int) -> str:
+    """'1 point', 'n points'."""
+    return f"{n} point" + ("" if n == 1 else "s")
+
+
+def unsettled(switched: list[int]) -> str:
+    """A failure's note when each of the last UNSETTLED iterations switched points (else ""): the
+    iteration did not settle on an active set, as against diverging on a fixed one."""
+    tail = switched[1:][-UNSETTLED:]
+    if len(tail) < UNSETTLED or not all(tail):
+        return ""
+    lo, hi = min(tail), max(tail)
+    count = points(lo) if lo == hi else f"{lo}-{hi} points"
+    return f"; {count} switched in each of the last {UNSETTLED} iterations: the active set does not settle"
+
+
 def newton_step(
     model: Model,
     u_n: np.ndarray,
@@ -206,7 +225,8 @@ def newton_step(
         if _cycling(result.residuals):
             result.message = (f"iteration {it}: the iterates cycle between two states (relative residuals "
                               f"{result.residuals[-2]:.3e} and {rel:.3e} twice over): more iterations cannot "
-                              "converge; e.g. a point flipping between its elastic and plastic states")
+                              "converge; e.g. a point flipping between its elastic and plastic states"
+                              + unsettled(result.switched))
             result.u, result.lam = u, u_lam
             return result
         a = asm.matrix
@@ -267,6 +287,7 @@ def newton_step(
             u += du
             u[dofs_d] = loads.dirichlet(u_lam)  # exact, no drift from summed increments
         result.iterations = it + 1
-    result.message = f"no convergence in {options.max_iterations} iterations (residual {rel:.2e})"
+    result.message = (f"no convergence in {options.max_iterations} iterations (residual {rel:.2e})"
+                      + unsettled(result.switched))
     result.u, result.lam = u, u_lam
     return result

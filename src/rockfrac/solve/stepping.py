@@ -28,7 +28,7 @@ import numpy as np
 from rockfrac.model import Model
 from rockfrac.solve.events import activation_fraction
 from rockfrac.solve.linear import LinearSolver
-from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step
+from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step, points
 from rockfrac.solve.paths import Committed, PathSpec
 
 
@@ -135,7 +135,7 @@ class StopRun(Exception):
 def _log_iterations(log, name: str, step: int, res: NewtonResult) -> None:
     switched = res.switched + [0] * (len(res.residuals) - len(res.switched))
     for k, (rr, ee, n) in enumerate(zip(res.residuals, [np.nan] + res.energies, switched)):
-        change = f", {n} points switched" if k and n else ""
+        change = f", {points(n)} switched" if k and n else ""
         log(f"  {name} step {step} it {k}: residual {rr:.3e} energy {ee:.3e}{change}")
 
 

@@ -70,5 +70,17 @@ def test_a_failure_says_when_the_active_set_does_not_settle():
         plain, switching = solve(line_search), solve(line_search, group=SwitchingCubic)
         assert not plain.converged and not switching.converged
         assert "active set" not in plain.message
+        window = 4 if line_search == 0 else 8  # the cycle stops at iteration 4
         assert switching.message == plain.message + (
-            "; 2 points switched in each of the last 4 iterations: the active set does not settle")
+            f"; points switched in {window} of the last {window} iterations (2 at a time): the active set "
+            "does not settle")
+
+
+def test_the_unsettled_note_counts_most_of_the_last_iterations():
+    from rockfrac.solve.newton import unsettled
+
+    chatter = [0, 3, 2] + [1, 1, 0, 1, 0, 1, 1, 0]  # it 0 (not counted), then a point flipping
+    assert unsettled(chatter) == ("; points switched in 5 of the last 8 iterations (1 at a time): the active "
+                                  "set does not settle")
+    assert unsettled([0, 5, 0, 0, 1, 0, 0, 0, 0]) == ""  # settled
+    assert unsettled([0, 1, 1, 1]) == ""  # too few iterations to say

@@ -17,6 +17,7 @@ from rockfrac.model import Model
 from rockfrac.solve import stepping
 from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import Loads, NewtonOptions, newton_step
+from rockfrac.runner import engine_options
 from rockfrac.solve.stepping import SteppingOptions, Stage, run_stages
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,3 +127,13 @@ def test_cohesive_points_report_their_switches(example):
     assert group.evaluate(opened, u_n).n_switched == n  # every point turns plastic
     assert group.evaluate(opened, u_n).n_switched == 0  # the same iterate again
     assert group.evaluate(u_n, u_n).n_switched == n  # and back
+
+
+def test_the_growth_is_set_in_the_solver_section():
+    d = tomllib.loads((ROOT / "examples" / "paper" / "cse_rp.toml").read_text())
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    _, default = engine_options(build(parse_case(d, "rp.toml")))
+    assert (default.grow, default.easy_iterations) == (1.5, 6)
+    d["solver"] = {"grow": 1.2, "easy_iterations": 16}
+    _, chosen = engine_options(build(parse_case(d, "rp.toml")))
+    assert (chosen.grow, chosen.easy_iterations) == (1.2, 16)

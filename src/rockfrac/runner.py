@@ -464,7 +464,8 @@ def engine_options(built: Built, should_stop: Callable[[], bool] | None = None
                    ) -> tuple[NewtonOptions, SteppingOptions]:
     """Newton's and the stepping's options from the case's [solver] section."""
     case, sol = built.case, built.case.solver
-    stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step, locate_activation=sol.locate_activation,
+    stepping = SteppingOptions(cutback=sol.cutback, min_step=sol.min_step, grow=sol.grow,
+                               easy_iterations=sol.easy_iterations, locate_activation=sol.locate_activation,
                                fallback=sol.fallback, implex_tol=sol.implex_tol)
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                            force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),

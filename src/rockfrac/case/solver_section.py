@@ -42,6 +42,17 @@ class SolverSection(_Section):
     tol_energy: float = Field(1e-10, ge=1e-20, le=1e-2, description="relative energy norm to converge")
     cutback: float = Field(0.5, ge=0.01, le=0.9, description="factor on the step after a failed one")
     min_step: float = Field(1e-4, ge=1e-12, le=1, description="smallest increment, fraction of the nominal")
+    grow: float = Field(1.5, ge=1.0, le=10.0, description="factor on the step after an easy one (up to the nominal; "
+                        "1: a cut-back step stays short)")
+    easy_iterations: int = Field(6, ge=0, le=1000, description="a converged step is easy (the next may grow) if "
+                                 "it took at most this many Newton iterations without an active-set change")
+
+    @model_validator(mode="after")
+    def _easy_within_max(self) -> SolverSection:
+        if self.easy_iterations > self.max_iterations:
+            raise ValueError(f"easy_iterations = {self.easy_iterations} exceeds max_iterations = "
+                             f"{self.max_iterations}: give at most max_iterations (every converged step easy)")
+        return self
     locate_activation: bool = Field(True, description="end a load-controlled step where a cohesive surface "
                                     "first yields (its peak becomes a step); false steps over it, as the paper's "
                                     "study does")

@@ -96,8 +96,6 @@ CASES = [
     ("cutback-one", solver("cutback = 1.0"), "[solver] cutback", "less than or equal"),
     ("grow-shrinks", solver("grow = 0.5"), "[solver] grow", "greater than or equal"),
     ("easy-negative", solver("easy_iterations = -1"), "[solver] easy_iterations", "greater than or equal"),
-    ("easy-above-max", solver("max_iterations = 10", "easy_iterations = 11"), "[solver]",
-     "easy_iterations = 11 exceeds max_iterations = 10"),
     ("iterations-zero", solver("max_iterations = 0"), "[solver] max_iterations",
      "greater than or equal"),
     ("linear-unknown", solver('linear = "cholmod"'), "[solver] linear", "'superlu'"),

@@ -14,10 +14,10 @@ from rockfrac.case.build import build
 from rockfrac.case.schema import parse_case
 from rockfrac.elements.base import ElementGroup, Evaluation
 from rockfrac.model import Model
+from rockfrac.runner import engine_options
 from rockfrac.solve import stepping
 from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import Loads, NewtonOptions, newton_step
-from rockfrac.runner import engine_options
 from rockfrac.solve.stepping import SteppingOptions, Stage, run_stages
 
 ROOT = Path(__file__).resolve().parents[1]

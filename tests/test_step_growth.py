@@ -61,6 +61,16 @@ def test_newton_counts_the_iterations_that_switch_a_point():
     assert lines[1].endswith(", 1 point switched") and "switched" not in lines[0] + lines[2]
 
 
+class ElasticPair(ElementGroup):
+    """Two independent linear springs on dofs (0, 1), 1 N/m each."""
+
+    def __init__(self):
+        self.dofs = np.array([[0, 1]])
+
+    def evaluate(self, u, u_n):
+        return Evaluation(np.array([[u[0], u[1]]]), np.array([np.eye(2)]))
+
+
 def grown_sizes(monkeypatch, switching: int) -> list[float]:
     """The load-factor increments of a linear spring pulled in 10 nominal steps, whose first step fails
     once and every converged step reports 10 Newton iterations, ``switching`` of them with a switch."""
@@ -86,16 +96,6 @@ def grown_sizes(monkeypatch, switching: int) -> list[float]:
                         lambda info: lams.append(info.load_factor))
     assert result.completed
     return np.diff(lams).tolist()
-
-
-class ElasticPair(ElementGroup):
-    """Two independent linear springs on dofs (0, 1), 1 N/m each."""
-
-    def __init__(self):
-        self.dofs = np.array([[0, 1]])
-
-    def evaluate(self, u, u_n):
-        return Evaluation(np.array([[u[0], u[1]]]), np.array([np.eye(2)]))
 
 
 def test_a_cut_back_step_grows_back_when_its_hard_iterations_are_switches(monkeypatch):

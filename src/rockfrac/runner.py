@@ -366,9 +366,9 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             + f", {model.n_dofs} unknowns")
         for note in built.program.notes + history.notes:
             log(note)
-        for k, c in enumerate(case.cohesive_sets):
+        for c, group in zip(case.cohesive_sets, built.cohesives):
             if c.viscosity is not None:
-                which = f"cohesive {k + 1}, " if len(case.cohesive_sets) > 1 else ""
+                which = f"{group.name}, " if len(case.cohesive_sets) > 1 else ""
                 log(f"cohesive surfaces ({which}{c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
                     f"{c.viscosity:g} (pseudo-time, a stage = 1); its extra dissipation is history.csv's D_viscous")
         if distribution is not None:

@@ -71,10 +71,42 @@ class Model:
         return n
 
     def __post_init__(self) -> None:
-        self.n_dofs = self.number_extras()
+        self.n_dofs = self._number()
         self._build_structure()
         self.update_constant_force()
         self.set_dirichlet(self.dirichlet)
+
+    def _number(self) -> int:
+        """Number the dofs (an MPI rank's model: then renumber its groups locally); returns how many."""
+        return self.number_extras()
+
+    # -- the model's numbering against the global one (an MPI rank's is local) --------------------
+    @property
+    def n_u(self) -> int:
+        """How many displacement dofs the model's vectors have (they come first)."""
+        return self.dim * self.n_nodes
+
+    @property
+    def n_u_global(self) -> int:
+        """How many displacement dofs the whole model has (every rank's)."""
+        return self.dim * self.n_nodes
+
+    def local_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the model's numbers of those of the global ``dofs`` its vectors hold, where they are among
+        ``dofs``): serially all of them, as they are; an MPI rank's local ones."""
+        dofs = np.asarray(dofs, dtype=np.int64)
+        return dofs, np.ones(dofs.shape, dtype=bool)
+
+    def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
+        """The global numbers of dofs of the model's numbering (serially the same)."""
+        return np.asarray(dofs, dtype=np.int64)
+
+    def localized(self, f: np.ndarray) -> np.ndarray:
+        """A vector over the first global dofs (the displacements, or all) as a vector of the model's
+        (n_dofs,), zero on the others: an MPI rank keeps the entries of its local dofs."""
+        out = np.zeros(self.n_dofs)
+        out[: f.shape[0]] = f
+        return out
 
     def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
         """The matrix's size and each dof's row in it (None: the dof numbering itself); an MPI rank's

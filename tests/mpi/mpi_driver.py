@@ -57,6 +57,7 @@ def system(built, comm, u: np.ndarray) -> dict:
     model, lay = built.model, built.model.layout
     model.set_dirichlet(built.stages[0].dirichlet)
     model.begin_step()
+    u = model.localized(u)  # the rank's local entries of the whole vector
     asm = model.assemble(u, np.zeros(model.n_dofs), np.zeros(model.n_dofs))  # from the virgin state
     a = model.apply_dirichlet(asm.matrix).mat
     indptr, cols, vals = a.getValuesCSR()
@@ -68,14 +69,16 @@ def system(built, comm, u: np.ndarray) -> dict:
     pairs = np.concatenate([g.points.minus for g in built.cohesives] + [np.zeros(0, dtype=np.int64)])
     owned_cells = comm.gather(cells, root=0)
     owned_pairs = comm.gather(pairs, root=0)
-    # ghosts: a vector whose owned entries are 1 + the rockfrac dof, scattered to every local entry
-    probe = lay.from_vec(lay.to_vec(np.arange(1.0, lay.n + 1.0)))
-    ghost_error = comm.allreduce(float(np.abs(probe[lay.local] - (lay.local + 1.0)).max(initial=0.0)), op=MPI.MAX)
+    # ghosts: a vector whose owned entries are 1 + the global dof, scattered to every local entry
+    probe = lay.from_vec(lay.to_vec(np.where(lay.owned_mask, lay.local + 1.0, np.nan)))
+    ghost_error = comm.allreduce(float(np.abs(probe - (lay.local + 1.0)).max(initial=0.0)), op=MPI.MAX)
+    local_vectors = comm.allreduce(int(model.n_dofs != lay.local.shape[0] or asm.residual.shape != (model.n_dofs,)))
     n_ghosts = comm.gather(int(lay.local.shape[0] - lay.owned.shape[0]), root=0)
+    n_local = comm.gather(int(model.n_dofs), root=0)
     # the rank's matrix is numbered on its local dofs only: its pattern has a row per local dof
     rows_of_pattern = comm.allreduce(int(model.pattern.n != lay.local.shape[0]))
     out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error),
-           "pattern_not_local": np.array(rows_of_pattern)}
+           "pattern_not_local": np.array(rows_of_pattern), "vectors_not_local": np.array(local_vectors)}
     if comm.rank == 0:
         out["rows"] = np.concatenate([p[0] for p in parts])
         out["cols"] = np.concatenate([p[1] for p in parts])
@@ -83,6 +86,7 @@ def system(built, comm, u: np.ndarray) -> dict:
         out["cells"] = np.concatenate(owned_cells)
         out["pairs"] = np.concatenate(owned_pairs)
         out["n_ghosts"] = np.array(n_ghosts)
+        out["n_local"] = np.array(n_local)
         out["n_if_cells"] = np.array(built.mesh.interfaces.shape[0])
         out["n_cells"] = np.array(built.mesh.cells.shape[0])
     return out
@@ -137,7 +141,7 @@ def traffic(built, comm) -> dict:
     checkpoint_bytes = counting.sent
     worst = np.max(comm.allgather([piece_bytes, checkpoint_bytes, asked[0], piece.points.shape[0]]), axis=0)
     return {"piece_bytes": worst[0], "checkpoint_bytes": worst[1], "asked": worst[2], "piece_points": worst[3],
-            "n_dofs": np.array(model.n_dofs)}
+            "n_dofs": np.array(model.layout.n)}
 
 
 def main() -> None:

@@ -377,7 +377,8 @@ def test_nodal_cracks_with_an_amg_preconditioner_give_the_serial_history(tmp_pat
 def test_global_matrix_ownership_and_ghosts(tmp_path, n):
     """The 2- and 3-rank tangent, gathered, equals the serial one (plastic surfaces included), every
     cell and cohesive pair is owned by one rank, the ghosts hold their owners' values, and each rank's
-    sparsity pattern has the rows of its local dofs only (no pattern in the whole numbering)."""
+    sparsity pattern has the rows of its local dofs only (no pattern in the whole numbering), as its
+    vectors have their entries (no vector of the whole model's length)."""
     case = splitting_case()
     built = build(parse_case(case, "serial"))
     model = built.model
@@ -406,6 +407,8 @@ def test_global_matrix_ownership_and_ghosts(tmp_path, n):
     np.testing.assert_array_equal(np.sort(par["pairs"]), np.sort(pairs))
     assert float(par["ghost_error"]) == 0.0 and par["n_ghosts"].min() > 0
     assert int(par["pattern_not_local"]) == 0  # each rank's pattern: its local dofs' rows only
+    assert int(par["vectors_not_local"]) == 0  # and its residual their entries only
+    assert par["n_local"].max() < (0.6 if n == 2 else 0.45) * ref.shape[0]  # a share of the whole, and ghosts
 
 
 def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):

@@ -127,12 +127,12 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
     if stage.max_steps is None:
         raise CaseError(f"{path}: {key}: max_steps is not resolved")
     if stage.control == "arc_length":
-        return arc_length_path(mesh.dim * mesh.n_nodes, stage.path_increment, stage.max_steps, model)
+        return arc_length_path(model.n_u, stage.path_increment, stage.max_steps, model, model.n_u_global)
     if stage.control == "energy":
         if stage.path_increment is None:
             raise CaseError(f"{path}: {key} path_increment: control = 'energy' needs the energy released per step "
                             "[J/m in 2D (per unit thickness), J in 3D]")
-        return energy_path(mesh.dim * mesh.n_nodes, thickness, stage.path_increment, active, stage.max_steps, model)
+        return energy_path(model.n_u, thickness, stage.path_increment, active, stage.max_steps, model)
     if stage.control == "opening":
         found = {m.name: m for m in monitors}
         m = found.get(stage.monitor or "")
@@ -210,7 +210,8 @@ def opening_measure(m: Monitor, dim: int, n_dofs: int, model: Model | None = Non
     grad = np.zeros(n_dofs)
     for sign, ids in ((-1.0, m.nodes[0]), (1.0, m.nodes[1])):
         for a in range(dim):
-            np.add.at(grad, ids * dim + a, sign * m.direction[a] / ids.shape[0])
+            dofs, _ = model.local_dofs(ids * dim + a) if model is not None else (ids * dim + a, None)
+            np.add.at(grad, dofs, sign * m.direction[a] / ids.shape[0])
     if model is not None and model.distributed:
         part = model.owned(grad)
         return lambda u: (model.reduce_sum(float(part @ u)), part)
@@ -328,10 +329,8 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
                 loaded, t_situ = in_situ_tractions(mesh, bulks, initial, outer, in_situ_factor)
                 surface_edges.append(loaded)
                 surface_tractions.append(t_situ)
-        f_full = np.zeros(model.n_dofs)
-        f_full[: f_end.shape[0]] = f_end
-        dofs = np.array(sorted(presc), dtype=np.int64)
-        values = np.array([presc[d] for d in dofs.tolist()])
+        f_full = model.localized(f_end)
+        dofs, values = _prescribed(model, presc)
         if st.control == "energy":
             _check_still_supports(presc, held, key, path)
         name = st.name or f"stage {k + 1}"
@@ -344,8 +343,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         stops.append(st.stop)
         sections.append(st)
     u0 = model.initial_unknowns()
-    f0_full = np.zeros(model.n_dofs)
-    f0_full[: np.size(f0)] = f0
+    f0_full = model.localized(np.atleast_1d(np.asarray(f0, dtype=float)))
     if stages and model.enrichment_version() is not None:  # nodal cracks' share at t = 0
         if initial is not None:
             edges0, tractions0 = in_situ_tractions(mesh, bulks, initial, outer, np.ones(outer.shape[0]))
@@ -361,6 +359,16 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
             if why:
                 raise CaseError(f"{path}: [initial] stress: {why}")
     return Program(stages, u0, f0_full, stops, sections, aliases=case.loading is not None, notes=notes)
+
+
+def _prescribed(model: Model, presc: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
+    """The prescribed dofs (global dof -> value) in the model's numbering, sorted, and their values (an
+    MPI rank keeps those of its local dofs)."""
+    dofs = np.array(sorted(presc), dtype=np.int64)
+    values = np.array([presc[d] for d in dofs.tolist()])
+    local, held = model.local_dofs(dofs)
+    order = np.argsort(local, kind="stable")
+    return local[order], values[held][order]
 
 
 def _at_nodes(tractions: np.ndarray, sides: np.ndarray) -> np.ndarray:
@@ -383,12 +391,12 @@ def _check_equilibrium(model: Model, first: Stage, u0: np.ndarray, f0: np.ndarra
     model.begin_step()
     asm = model.assemble(u0, u0, f0)
     r = model.owned(asm.residual)[model.free]  # each dof on one rank
-    scale = max(float(np.abs(f0).max(initial=0.0)), 1e-30)
+    scale = max(float(model.reduce_max(np.abs(f0).max(initial=0.0))), 1e-30)  # every rank's loads
     mine = float(np.abs(r).max(initial=0.0))
     worst = model.reduce_max(mine)
     failure = None
     if worst > EQUILIBRIUM_TOL * scale and mine == worst:
-        i = int(model.free[np.argmax(np.abs(r))])
+        i = int(model.global_dofs(model.free[np.argmax(np.abs(r))]))
         failure = (f"{path}: [initial]: the state at t = 0 is not in equilibrium: an unbalanced force of "
                    f"{worst:.4g} N/m at dof {i} (the largest initial load is {scale:.4g} N/m); an in-situ stress "
                    "that varies with elevation needs the gravity that balances it (d sigma_yy / dy = rho g_y "

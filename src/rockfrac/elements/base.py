@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rockfrac.fem.dofs import LocalNumbering
 from rockfrac.fem.loads import StressField
 
 #: A path-following measure g(u) and its gradient dg/du (dense, n_dofs).
@@ -39,7 +40,8 @@ class Evaluation:
 class ElementGroup(ABC):
     """A group of elements of one kind on the global dof numbering.
 
-    dofs: (n_el, nd) global dof indices of each element's vector and block.
+    dofs: (n_el, nd) dof indices of each element's vector and block (the model's numbering: global, or an MPI
+    rank's local one after :meth:`renumber`).
     n_extra: unknowns the group owns beyond the displacements (RP multipliers), numbered by
     :meth:`set_offset`. constant: its tangent never changes and its residual is linear (assembled
     once through :meth:`assemble_constant`). name: how output names it (a region or a set).
@@ -79,6 +81,16 @@ class ElementGroup(ABC):
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Extra dofs whose equation the Dirichlet set already imposes (prescribed to zero instead)."""
         return np.zeros(0, dtype=np.int64)
+
+    def reach(self) -> np.ndarray:
+        """Every dof the group may ever touch (in the numbering it has now): its ``dofs``, and for a group
+        whose dofs grow (cells cut by a nodal crack) those they may grow to. An MPI rank keeps vectors
+        on these dofs of its groups, fixed for the run."""
+        return self.dofs.ravel()
+
+    def renumber(self, numbering: LocalNumbering) -> None:
+        """Put every dof the group holds into an MPI rank's local numbering (from the global one)."""
+        self.dofs = numbering.local(self.dofs)
 
     def structure_version(self) -> int:
         """A counter that changes whenever the group's ``dofs`` change (cells cut by a nodal crack); the

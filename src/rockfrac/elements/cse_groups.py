@@ -42,6 +42,17 @@ class _CohesiveGroup(ElementGroup):
         self.status = np.zeros(n, dtype=np.int64)
         self.dissipated = 0.0  # sum of w T . d[[u^p]] over the committed steps [J]
         self.initial_traction = np.zeros((n, d))  # global in-situ tractions [Pa]
+        self.jump_dofs = points.dofs  # (n, 2 d): each point's minus, then plus displacement dofs
+        self.dofs = self.jump_dofs
+
+    def jumps(self, u: np.ndarray) -> np.ndarray:
+        """Global-frame jumps u(+) - u(-) at the points, (n_pts, dim) [m]."""
+        d = self.dim
+        return u[self.jump_dofs[:, d:]] - u[self.jump_dofs[:, :d]]
+
+    def renumber(self, numbering) -> None:
+        self.jump_dofs = numbering.local(self.jump_dofs)
+        self.dofs = numbering.local(self.dofs)
 
     def begin_step(self) -> None:
         self.trial[:] = self.state
@@ -123,7 +134,7 @@ class _CohesiveGroup(ElementGroup):
     def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """Local tractions' increment (n_pts, dim) [Pa] along du from the committed state while no
         point yields: the committed tangent on the jump increment (EP)."""
-        dj = self.points.local(self.points.jumps(u + du) - self.points.jumps(u))
+        dj = self.points.local(self.jumps(u + du) - self.jumps(u))
         return np.einsum("pij,pj->pi", self.tangent, dj)
 
     def activation(self, u: np.ndarray, du: np.ndarray) -> float | None:
@@ -169,12 +180,11 @@ class _CohesiveGroup(ElementGroup):
         m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]
         grad = np.zeros(n_dofs)
         d = self.dim
-        for a in range(d):
-            np.add.at(grad, d * pts.plus + a, m[:, a])
-            np.add.at(grad, d * pts.minus + a, -m[:, a])
+        np.add.at(grad, self.jump_dofs[:, d:], m)
+        np.add.at(grad, self.jump_dofs[:, :d], -m)
 
         def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
-            return float(np.sum(m * pts.jumps(u))), grad
+            return float(np.sum(m * self.jumps(u))), grad
 
         return measure
 
@@ -182,7 +192,7 @@ class _CohesiveGroup(ElementGroup):
         """Committed per-point quantities in the local frame (for points.csv): position, jump,
         traction, plastic jump, the law's own records, mode."""
         s = self.state
-        jump = self.points.local(self.points.jumps(u))
+        jump = self.points.local(self.jumps(u))
         if self.dim == 3:
             return self._records_3d(s, jump)
         out = {
@@ -241,7 +251,6 @@ class CohesiveEP(_CohesiveGroup):
         if points.dim == 3 and integration != "implicit":
             raise ValueError("IMPL-EX integration is 2D only; 3D surfaces are integrated implicitly")
         super().__init__(points, law, name=name)
-        self.dofs = points.dofs
         d = self.dim
         self.up_prev = np.zeros((points.n, d))  # IMPL-EX: committed plastic jumps one step earlier [m]
         self.step_prev = np.zeros(2)  # IMPL-EX: (control mode, size) of the last committed step
@@ -314,7 +323,7 @@ class CohesiveEP(_CohesiveGroup):
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
-        djump = pts.jumps(u) - pts.jumps(u_n)
+        djump = self.jumps(u) - self.jumps(u_n)
         n, nd = pts.n, 2 * self.dim
         fe = np.empty((n, nd))
         ke = np.empty((n, nd, nd))
@@ -384,7 +393,11 @@ class CohesiveRP(_CohesiveGroup):
         set's numbering, so every rank agrees on it)."""
         self.offset = offset
         self.lam_dofs = offset + self.dim * np.asarray(self.points.index)[:, None] + np.arange(self.dim)
-        self.dofs = np.hstack([self.points.dofs, self.lam_dofs])
+        self.dofs = np.hstack([self.jump_dofs, self.lam_dofs])
+
+    def renumber(self, numbering) -> None:
+        super().renumber(numbering)
+        self.lam_dofs = numbering.local(self.lam_dofs)
 
     def extra_span(self) -> int:
         return self.dim * self.total_points
@@ -399,13 +412,10 @@ class CohesiveRP(_CohesiveGroup):
         Their rows would be empty (a singular system); they are prescribed to zero instead, and the
         supports take that traction component."""
         d = self.dim
-        held = np.zeros(int(max(dirichlet.max(initial=0), d * max(self.points.plus.max(initial=0),
-                                                                      self.points.minus.max(initial=0)) + d - 1)) + 2,
-                        dtype=bool)
-        held[dirichlet] = True
+        held = np.isin(self.jump_dofs, dirichlet)
         out = []
         for a in range(d):
-            both = held[d * self.points.minus + a] & held[d * self.points.plus + a]
+            both = held[:, a] & held[:, d + a]
             out.append(self.lam_dofs[both, a])
         return np.concatenate(out).astype(np.int64)
 
@@ -420,7 +430,7 @@ class CohesiveRP(_CohesiveGroup):
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
-        djump = pts.jumps(u) - pts.jumps(u_n)
+        djump = self.jumps(u) - self.jumps(u_n)
         n, nd = pts.n, 3 * self.dim
         fe = np.empty((n, nd))
         ke = np.empty((n, nd, nd))

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from rockfrac.elements.ede_paths import Alone, Exchange
+from rockfrac.fem.dofs import LocalNumbering
 
 
 def side_key(nodes) -> tuple[int, ...]:
@@ -66,6 +67,7 @@ class EnrichmentRegistry:
         self.distributed = exchange is not None
         self.rank = rank
         self.offset = 0
+        self.numbering: LocalNumbering | None = None  # an MPI rank's local dofs (None: the global numbering)
         self.enriched = np.zeros(self.nodes.size, dtype=bool)
         self.crack_of = np.full(self.nodes.size, -1)
         self.version = 0
@@ -100,7 +102,11 @@ class EnrichmentRegistry:
         """The q unknowns (n_el, dim k) of cells (n_el, k) of mesh nodes, node by node."""
         i = self.index(cells)
         q = self.offset + self.dim * i[..., None] + np.arange(self.dim)
-        return q.reshape(cells.shape[0], self.dim * cells.shape[1])
+        return self._local(q.reshape(cells.shape[0], self.dim * cells.shape[1]))
+
+    def _local(self, q: np.ndarray) -> np.ndarray:
+        """Global q dofs in the model's numbering (an MPI rank's local one, once renumbered)."""
+        return q if self.numbering is None else self.numbering.local(q)
 
     def set_offset(self, offset: int) -> None:
         """Number the q's from ``offset``."""
@@ -250,12 +256,17 @@ class EnrichmentRegistry:
         return enr.astype(float)
 
     def prescribed(self, dirichlet: np.ndarray) -> np.ndarray:
-        """The q's of the prescribed displacement components of the registry's nodes."""
-        node, comp = np.divmod(np.asarray(dirichlet, dtype=np.int64), self.dim)
+        """The q's of the prescribed displacement components of the registry's nodes (dirichlet and the
+        q's in the model's numbering; an MPI rank's: those of its local dofs)."""
+        dirichlet = np.asarray(dirichlet, dtype=np.int64)
+        if self.numbering is not None:
+            dirichlet = self.numbering.global_(dirichlet)
+        node, comp = np.divmod(dirichlet, self.dim)
         i = np.searchsorted(self.nodes, node)
         inside = (i < self.nodes.size)
         inside[inside] = self.nodes[i[inside]] == node[inside]
-        return self.offset + self.dim * i[inside] + comp[inside]
+        q = self.offset + self.dim * i[inside] + comp[inside]
+        return q if self.numbering is None else self.numbering.local_part(q)[0]
 
     # -- loads on a boundary the crack crosses --------------------------------------------------
     def surface_forces(self, sides: np.ndarray, tractions: np.ndarray, n_dofs: int) -> np.ndarray:
@@ -284,7 +295,7 @@ class EnrichmentRegistry:
                     i = int(self.index(np.array(node)))
                     if not self.enriched[i] or self.crack_of[i] != crack:
                         continue
-                    dofs = self.offset + self.dim * i + np.arange(self.dim)
+                    dofs = self._local(self.offset + self.dim * i + np.arange(self.dim))
                     out[dofs] += weights @ at_nodes
         return out
 

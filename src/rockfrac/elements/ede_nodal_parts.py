@@ -44,6 +44,16 @@ class CutCells(ElementGroup):
             self._key = key
         return self._dofs
 
+    def reach(self) -> np.ndarray:
+        """The u's and q's of every cell of the owner, each of which a crack may cut."""
+        g = self.owner
+        assert g.registry is not None
+        return np.concatenate([g.dofs.ravel(), g.registry.dofs(g.cells).ravel()])
+
+    def renumber(self, numbering) -> None:
+        """The owner and the registry are renumbered by themselves; the cut cells' dofs are made again."""
+        self._key = (-1, -1)
+
     def structure_version(self) -> int:
         """The number of cut cells (a new one is new rows of the matrix)."""
         return int(self.owner.cc_cell.size)
@@ -100,6 +110,11 @@ class HeldEnrichment(ElementGroup):
     def set_offset(self, offset: int) -> None:
         self.registry.set_offset(offset)
         self.dofs = offset + self.rows[:, None]
+
+    def renumber(self, numbering) -> None:
+        """The held q's, and every q the registry numbers from now on, in the rank's local numbering."""
+        self.registry.numbering = numbering
+        self.dofs = numbering.local(self.dofs)
 
     def structure_version(self) -> int:
         """The cuts made so far, any rank's: the same on every rank, so that a distributed model

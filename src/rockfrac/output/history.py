@@ -124,7 +124,7 @@ class History:
         self.means = MEANS + tuple(m for m in means if m not in MEANS)
         self.mesh, self.model, self.thickness, self.axial_dofs = mesh, model, thickness, axial_dofs
         self.dim = mesh.dim
-        self.n_u = self.dim * mesh.n_nodes
+        self.n_u = model.n_u  # the displacement dofs of the model's vectors (an MPI rank's local ones)
         self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if len(ids)}
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
@@ -154,7 +154,7 @@ class History:
 
     def _initial_f_int(self, u0: np.ndarray, f0: np.ndarray) -> np.ndarray:
         """f_int at t = 0 (zero for a stress-free start; else the state's internal forces)."""
-        if not np.any(f0) and not np.any(u0):
+        if not self.model.reduce_any(bool(np.any(f0) or np.any(u0))):  # on any rank's dofs
             return np.zeros(self.n_w)
         self.model.begin_step()
         return self._owned(self.model.assemble(u0, u0, f0).f_int)
@@ -200,7 +200,8 @@ class History:
             i = np.concatenate([np.full(len(dofs), k) for k, (_, dofs, _) in enumerate(rows)] + [np.zeros(0, int)])
             j = np.concatenate([dofs for _, dofs, _ in rows] + [np.zeros(0, int)])
             v = np.concatenate([w for _, _, w in rows] + [np.zeros(0)])
-            return sp.csr_matrix((v * own[j], (i, j)), shape=(len(rows), self.n_u))
+            j, held = self.model.local_dofs(j)  # global dofs: an MPI rank's own count, the others' are 0 here
+            return sp.csr_matrix((v[held] * own[j], (i[held], j)), shape=(len(rows), self.n_u))
 
         return ([n for n, _, _ in on_u], matrix(on_u), [n for n, _, _ in on_f], matrix(on_f),
                 [n for n, _, _ in on_r], matrix(on_r))

@@ -1,19 +1,23 @@
 """Where a rank's dofs live: its owned block of PETSc rows, its ghosts, and the moves between a
 rockfrac vector and PETSc's distributed vectors.
 
-A rank keeps rockfrac vectors at full length in rockfrac's dof numbering, valid on its *local*
-dofs: those its elements touch (its owned dofs and the ghosts around them); the other entries are
-never read. PETSc's vectors and matrix rows are in the partition's numbering (each rank a
+A rank keeps rockfrac vectors on its *local* dofs only: those its elements touch or may touch (its
+owned dofs and the ghosts around them), numbered 0 .. n_local - 1: the displacements first, then
+the extra dofs (multipliers, enrichments), each part in PETSc order. The groups are renumbered
+into that numbering (:class:`rockfrac.fem.dofs.LocalNumbering`), so no vector of a rank has the
+whole model's length. PETSc's vectors and matrix rows are in the partition's numbering (each rank a
 contiguous block, :class:`rockfrac.mesh.partition.Partition`). ``to_vec`` copies the owned entries
 into a PETSc vector; ``from_vec`` fills the local entries from one (owned and ghosts, a scatter);
 ``sum_local`` adds the ranks' contributions of their elements and returns the sums on the local
-entries (the internal forces).
+entries (the internal forces). The rank's matrix rows (its sparsity pattern) are its local dofs in
+PETSc order: ``rows`` gives the local dof of each.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rockfrac.fem.dofs import LocalNumbering
 from rockfrac.mesh.partition import Partition
 
 
@@ -26,28 +30,36 @@ def petsc():
 class Layout:
     """One rank's dofs on the partition: owned (a contiguous PETSc block) and local (owned + ghosts)."""
 
-    def __init__(self, comm, partition: Partition, rank: int, local: np.ndarray, nodes: np.ndarray):
-        """local: the rockfrac dofs this rank's elements touch (sorted or not); nodes: the mesh's
-        coordinates (the owned ones are kept: the AMG's rigid-body modes)."""
+    def __init__(self, comm, partition: Partition, rank: int, reach: np.ndarray, nodes: np.ndarray):
+        """reach: the global dofs this rank's elements touch or may touch (any order, repeats allowed);
+        nodes: the mesh's coordinates (the owned ones are kept: the AMG's rigid-body modes)."""
         PETSc = petsc()
         self.comm, self.rank, self.size = comm, rank, comm.Get_size()
         self.n = partition.n_dofs
-        self.new = partition.new_dofs()  # rockfrac dof -> PETSc index
+        self.new = partition.new_dofs()  # global (rockfrac) dof -> PETSc index
         self.lo, self.hi = partition.owned_range(rank)
-        self.owned = partition.owned_dofs(rank)  # rockfrac dofs in PETSc order
+        self.owned = partition.owned_dofs(rank)  # global dofs in PETSc order
         self.starts = np.array([partition.owned_range(r)[0] for r in range(self.size)] + [self.n])
-        order = np.argsort(self.new[local], kind="stable")
-        self.local = np.asarray(local, dtype=np.int64)[order]
+        self.n_displacement = nodes.size  # rockfrac numbers the displacements first, then multipliers
+        reach = np.unique(np.asarray(reach, dtype=np.int64))
+        order = np.lexsort((self.new[reach], reach >= self.n_displacement))  # displacements first
+        self.local = reach[order]  # the global dof of each local one
+        self.n_local_u = int(np.count_nonzero(reach < self.n_displacement))
         self.local_petsc = self.new[self.local].astype(PETSc.IntType)
+        self.numbering = LocalNumbering(self.local)
         missing = np.setdiff1d(self.owned, self.local)
         if missing.size:  # an owned dof no element of the rank touches: not a partition of this mesh
             raise ValueError(f"rank {rank} owns dofs {missing[:5].tolist()} that none of its elements touches")
-        self.n_displacement = nodes.size  # rockfrac numbers the displacements first, then multipliers
+        self.owned_local = self.numbering.local(self.owned)  # the owned dofs' local numbers, PETSc order
+        self.owned_mask = np.zeros(self.local.shape[0], dtype=np.bool_)
+        self.owned_mask[self.owned_local] = True
+        self.rows = np.argsort(self.local_petsc, kind="stable")  # matrix row -> local dof
+        self.row_of = np.empty_like(self.rows)  # local dof -> matrix row
+        self.row_of[self.rows] = np.arange(self.rows.shape[0])
+        self.rows_petsc = self.local_petsc[self.rows]  # each matrix row's PETSc index (ascending)
         blocks = self.owned[::partition.dim] // partition.dim
         self.coordinates = nodes[blocks[blocks < nodes.shape[0]]]  # owned nodes (not multipliers), PETSc order
-        self.owned_mask = np.zeros(self.n, dtype=np.bool_)
-        self.owned_mask[self.owned] = True
-        self.lgmap = PETSc.LGMap().create(self.local_petsc, comm=comm)
+        self.lgmap = PETSc.LGMap().create(self.rows_petsc, comm=comm)
         self._vec = PETSc.Vec().createMPI((self.hi - self.lo, self.n), comm=comm)
         self._seq = PETSc.Vec().createSeq(self.local.shape[0], comm=PETSc.COMM_SELF)
         index = PETSc.IS().createGeneral(self.local_petsc, comm=PETSc.COMM_SELF)
@@ -71,26 +83,24 @@ class Layout:
         return v
 
     def to_vec(self, x: np.ndarray, out=None):
-        """A PETSc vector holding x's owned entries."""
+        """A PETSc vector holding the owned entries of a local vector x."""
         v = self.new_vec() if out is None else out
-        v.getArray()[:] = x[self.owned]
+        v.getArray()[:] = x[self.owned_local]
         return v
 
     def from_vec(self, v) -> np.ndarray:
-        """A full-length rockfrac vector, its local entries (owned and ghosts) from the PETSc vector."""
+        """A local vector (owned and ghost entries) from the PETSc vector."""
         PETSc = petsc()
         self._ghosts.scatter(v, self._seq, addv=PETSc.InsertMode.INSERT_VALUES, mode=PETSc.ScatterMode.FORWARD)
-        out = np.zeros(self.n)
-        out[self.local] = self._seq.getArray()
-        return out
+        return self._seq.getArray().copy()
 
     def sum_local(self, x: np.ndarray) -> np.ndarray:
-        """The sum over the ranks of their vectors x (each nonzero on its local entries), on the
-        local entries of a full-length vector."""
+        """The sum over the ranks of their local vectors x (their elements' contributions), on the
+        local entries."""
         PETSc = petsc()
         v = self._vec
         v.zeroEntries()
-        v.setValues(self.local_petsc, x[self.local], addv=PETSc.InsertMode.ADD_VALUES)
+        v.setValues(self.local_petsc, x, addv=PETSc.InsertMode.ADD_VALUES)
         v.assemblyBegin()
         v.assemblyEnd()
         return self.from_vec(v)
@@ -124,7 +134,7 @@ class Layout:
         return u, lam
 
     def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
-        """x at any dofs (rockfrac numbering), each from its owner: one scatter of those entries only
+        """A local vector x at any global dofs, each from its owner: one scatter of those entries only
         (a collective call; x is read on the owned entries)."""
         PETSc = petsc()
         dofs = np.asarray(dofs, dtype=np.int64)
@@ -139,7 +149,8 @@ class Layout:
         return out
 
     def gather(self, x: np.ndarray) -> np.ndarray:
-        """The full vector on every rank, each entry from its owner (output, tests)."""
+        """The whole vector of a local one, in the global numbering, on every rank, each entry from its
+        owner (output, tests)."""
         full = np.zeros(self.n)
-        full[self.owned] = x[self.owned]
+        full[self.owned] = x[self.owned_local]
         return self.comm.allreduce(full)

@@ -40,11 +40,11 @@ class DistributedMatrix:
         self.mat, self.layout = mat, layout
 
     def __matmul__(self, x: np.ndarray) -> np.ndarray:
-        """A x on the owned entries of a full-length vector (x read on its owned entries)."""
+        """A x on the owned entries of a local vector (x read on its owned entries)."""
         y, xv = self.layout.new_vec(), self.layout.to_vec(x)
         self.mat.mult(xv, y)
-        out = np.zeros(self.layout.n)
-        out[self.layout.owned] = y.getArray()
+        out = np.zeros(self.layout.local.shape[0])
+        out[self.layout.owned_local] = y.getArray()
         y.destroy()
         xv.destroy()
         return out
@@ -63,24 +63,42 @@ class DistributedModel(Model):
 
     def __post_init__(self) -> None:
         assert self.partition is not None and self.comm is not None and self.nodes is not None
+        super().__post_init__()
+        self._matrix = self._preallocated()
+
+    def _number(self) -> int:
+        """Number every rank's extra dofs alike (global numbering), then put the groups into this
+        rank's local numbering: its vectors have its local dofs only."""
+        assert self.partition is not None and self.nodes is not None
         n = self.number_extras()  # the multipliers numbered over every rank's points
         if n != self.partition.n_dofs:
             raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {n}: its extra dofs "
                              "(rigid-plastic multipliers, nodal cracks' enrichments) are not partitioned")
-        self._set_layout()
-        super().__post_init__()
-        self._matrix = self._preallocated()
-
-    def _set_layout(self) -> None:
-        """The rank's dofs (those its groups' elements touch) and each one's row in the rank's matrix:
-        its place among them in PETSc order (-1: not the rank's)."""
-        assert self.partition is not None and self.nodes is not None
-        touched = [g.dofs.ravel() for g in self.groups]
+        reach = [g.reach() for g in self.groups]
         self.layout = Layout(self.comm, self.partition, self.rank,
-                             np.unique(np.concatenate(touched + [np.zeros(0, dtype=np.int64)])), self.nodes)
+                             np.concatenate(reach + [np.zeros(0, dtype=np.int64)]), self.nodes)
+        for g in self.groups:
+            g.renumber(self.layout.numbering)
         local = self.layout.local
-        self._row = np.full(self.layout.n, -1, dtype=np.int32 if local.shape[0] < 2**31 else np.int64)
-        self._row[local] = np.arange(local.shape[0])
+        self._row = self.layout.row_of.astype(np.int32 if local.shape[0] < 2**31 else np.int64)
+        return int(local.shape[0])
+
+    @property
+    def n_u(self) -> int:
+        return self.layout.n_local_u
+
+    def local_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.layout.numbering.local_part(dofs)
+
+    def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
+        return self.layout.numbering.global_(dofs)
+
+    def localized(self, f: np.ndarray) -> np.ndarray:
+        glob = self.layout.local
+        inside = glob < f.shape[0]
+        out = np.zeros(self.n_dofs)
+        out[inside] = f[glob[inside]]
+        return out
 
     def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
         """The rank's matrix is numbered on its local dofs in PETSc order: its pattern is the local
@@ -93,18 +111,17 @@ class DistributedModel(Model):
 
     def _constant_forces(self, u: np.ndarray) -> np.ndarray:
         assert self._const_matrix is not None
-        out = np.zeros(self.layout.n)
-        out[self.layout.local] = self._const_matrix @ u[self.layout.local]
+        rows = self.layout.rows
+        out = np.zeros(self.n_dofs)
+        out[rows] = self._const_matrix @ u[rows]
         return out
 
     def refresh_structure(self) -> bool:
-        """As the serial model, on the rank's dofs made again first (their scatters, and after the
-        pattern the preallocated matrix): a cut cell of a nodal crack brings its enrichments (every
-        rank at once: the registry's cuts are the same on every rank)."""
+        """As the serial model, then the preallocated matrix made again: a cut cell of a nodal crack
+        brings its enrichments (every rank at once: the registry's cuts are the same on every rank).
+        The local dofs stay: they include every enrichment a cut may bring (the groups' reach)."""
         if tuple(g.structure_version() for g in self.groups) == self._structure:
             return False
-        self.layout.destroy()
-        self._set_layout()
         super().refresh_structure()
         self._matrix.destroy()
         self._matrix = self._preallocated()
@@ -118,16 +135,16 @@ class DistributedModel(Model):
         which add the columns they bring to those rows."""
         PETSc, lay = petsc(), self.layout
         indptr, columns = self._csr()
-        a, b = np.searchsorted(lay.local_petsc, [lay.lo, lay.hi])
-        ghost = np.r_[0:a, b:lay.local_petsc.shape[0]]
+        a, b = np.searchsorted(lay.rows_petsc, [lay.lo, lay.hi])
+        ghost = np.r_[0:a, b:lay.rows_petsc.shape[0]]
         lengths = np.diff(indptr)[ghost]
         entries = np.repeat(indptr[ghost] - (np.cumsum(lengths) - lengths), lengths) + np.arange(lengths.sum())
-        rows = np.repeat(lay.local_petsc[ghost], lengths).astype(np.int64)
-        cols = lay.local_petsc[columns[entries]].astype(np.int64)
+        rows = np.repeat(lay.rows_petsc[ghost], lengths).astype(np.int64)
+        cols = lay.rows_petsc[columns[entries]].astype(np.int64)
         owner = lay.owner(rows)
         got = lay.comm.alltoall([(rows[owner == r], cols[owner == r]) for r in range(lay.size)])
         row_ptr = indptr[a:b + 1] - indptr[a]
-        owned_cols = lay.local_petsc[columns[indptr[a]:indptr[b]]]  # ascending in each row
+        owned_cols = lay.rows_petsc[columns[indptr[a]:indptr[b]]]  # ascending in each row
         extra_rows = np.concatenate([r for r, _ in got]) - lay.lo
         if extra_rows.size:  # the union of this rank's columns and the others' in the shared rows
             shape = (lay.hi - lay.lo, lay.n)
@@ -162,7 +179,7 @@ class DistributedModel(Model):
         owned = self.layout.owned_mask
         self._dirichlet_owned = self.dirichlet[owned[self.dirichlet]]
         self._free_owned = self.free[owned[self.free]]
-        self._dirichlet_rows = self.layout.new[self._dirichlet_owned].astype(petsc().IntType)
+        self._dirichlet_rows = self.layout.local_petsc[self._dirichlet_owned].astype(petsc().IntType)
 
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
         """The residual (on the local dofs) and the distributed tangent; the verdicts over all ranks."""
@@ -185,15 +202,15 @@ class DistributedModel(Model):
 
     def enriched_surface_forces(self, edges: np.ndarray, tractions: np.ndarray) -> np.ndarray:
         """Each rank's cut cells' share, summed over the ranks."""
-        return self.reduce_sum(super().enriched_surface_forces(edges, tractions))
+        return self.layout.sum_local(super().enriched_surface_forces(edges, tractions))
 
     def enriched_body_forces(self, body: dict[str, np.ndarray]) -> np.ndarray:
         """Each rank's cut cells' share, summed over the ranks."""
-        return self.reduce_sum(super().enriched_body_forces(body))
+        return self.layout.sum_local(super().enriched_body_forces(body))
 
     # -- reductions over the ranks ---------------------------------------------------------------
     def _owned(self, part: str) -> np.ndarray:
-        return {"free": self._free_owned, "dirichlet": self._dirichlet_owned, "all": self.layout.owned}[part]
+        return {"free": self._free_owned, "dirichlet": self._dirichlet_owned, "all": self.layout.owned_local}[part]
 
     def dot(self, x: np.ndarray, y: np.ndarray, part: str = "free") -> float:
         idx = self._owned(part)
@@ -206,7 +223,7 @@ class DistributedModel(Model):
         return math.sqrt(self.comm.allreduce(serial_dot(grad, grad)))
 
     def reduce_all_finite(self, x: np.ndarray) -> bool:
-        return self.comm.allreduce(bool(np.all(np.isfinite(x[self.layout.local]))), op=_mpi().LAND)
+        return self.comm.allreduce(bool(np.all(np.isfinite(x))), op=_mpi().LAND)
 
     def reduce_any(self, flag: bool) -> bool:
         return self.comm.allreduce(bool(flag), op=_mpi().LOR)
@@ -251,19 +268,8 @@ class DistributedModel(Model):
     def exchange(self, parts: list[Any]) -> list[Any]:
         return self.comm.alltoall(parts)
 
-    def local_entries(self, x: np.ndarray) -> np.ndarray:
-        return x[self.layout.local]
-
     def local_signature(self) -> str:
         return hashlib.sha256(np.ascontiguousarray(self.layout.local, dtype=np.int64).tobytes()).hexdigest()
-
-    def from_local_entries(self, values: np.ndarray) -> np.ndarray:
-        local = self.layout.local
-        if values.shape != local.shape:
-            raise ValueError(f"{values.shape[0]} entries, this rank has {local.shape[0]} local dofs")
-        out = np.zeros(self.layout.n)
-        out[local] = values
-        return out
 
     def owned(self, x: np.ndarray) -> np.ndarray:
         return np.where(self.layout.owned_mask, x, 0.0)

@@ -199,7 +199,7 @@ def newton_step(
                 g += control.lam_coeff * u_lam
             g_ok = abs(g - control.target) <= control.tolerance or (control.rigid_ok and rigid)
         if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
-                and not np.any(mismatch)):
+                and not model.reduce_any(bool(np.any(mismatch)))):  # on any rank's prescribed dofs
             # the loads did not change over the step (a held stage): the start is the equilibrium; a
             # Newton correction would be round-off, whose energy norm relative to itself never converges
             result.converged = True

@@ -95,12 +95,13 @@ def _dot(x: np.ndarray, y: np.ndarray, ranks: Ranks | None) -> float:
 
 
 def arc_length_path(n_displacements: int, increment: float | None, max_steps: int,
-                    ranks: Ranks | None = None) -> PathSpec:
+                    ranks: Ranks | None = None, n_total: int | None = None) -> PathSpec:
     """The linearised arc length over the first ``n_displacements`` dofs (the nodal displacements):
     g(u) = t . u / sqrt(n), t the unit direction of the last converged increment (Riks' normal
     plane, updated every step), so that an increment of g is the root-mean-square nodal
-    displacement along the path [m]. ``ranks``: a distributed model (t over each rank's owned dofs)."""
-    scale = 1.0 / np.sqrt(n_displacements)
+    displacement along the path [m]. ``ranks``: a distributed model (t over each rank's owned dofs,
+    n_total the displacement dofs of every rank; default n_displacements)."""
+    scale = 1.0 / np.sqrt(n_total or n_displacements)
     distributed = ranks is not None and ranks.distributed
 
     def constraint(c: Committed) -> Constraint | None:

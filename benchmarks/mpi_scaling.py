@@ -157,7 +157,7 @@ def child(problem: str, dofs: float, serial: bool, out: Path) -> None:
     u_norm = float(np.linalg.norm(built.model.gather(result.u)))  # collective: on every rank
     if comm is None or comm.rank == 0:
         row = {"problem": problem, "engine": "serial" if serial else "distributed", "ranks": ranks,
-               "dofs": int(built.model.n_dofs), "completed": bool(result.completed), "message": result.message,
+               "dofs": int(built.model.n_dofs_global), "completed": bool(result.completed), "message": result.message,
                "steps": stats["steps"], "newton_iterations": stats["iterations"], "setup_s": round(t_setup, 2),
                "assembly_s": round(local["assembly"], 2), "solve_s": round(local["solve"], 2),
                "run_s": round(t_run, 2), "rss_gib_per_rank": [round(r, 2) for r in rss_all],

@@ -87,6 +87,11 @@ class Model:
         return self.dim * self.n_nodes
 
     @property
+    def n_dofs_global(self) -> int:
+        """How many dofs the whole model has (every rank's; what sizes a solver's choice)."""
+        return self.n_dofs
+
+    @property
     def n_u_global(self) -> int:
         """How many displacement dofs the whole model has (every rank's)."""
         return self.dim * self.n_nodes
@@ -300,7 +305,7 @@ class Model:
         return value
 
     def gather(self, x: np.ndarray) -> np.ndarray:
-        """The whole vector (a distributed model's ranks hold theirs valid on their own dofs only)."""
+        """The whole vector in the global numbering (a distributed model's ranks hold their local dofs only)."""
         return x
 
     def gather_records(self, records: dict[str, np.ndarray] | None, order: np.ndarray | None
@@ -317,26 +322,20 @@ class Model:
         return [value]
 
     def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
-        """x at the given dofs, each from the rank that owns it (a collective call on MPI ranks, which
-        may ask for different dofs; serial: x[dofs])."""
+        """x at the given global dofs, each from the rank that owns it (a collective call on MPI ranks,
+        which may ask for different dofs; serial: x[dofs])."""
         return x[dofs]
 
     def exchange(self, parts: list[Any]) -> list[Any]:
         """parts[r] sent to rank r; what every rank sent to this one, in rank order (serial: parts)."""
         return parts
 
-    def local_entries(self, x: np.ndarray) -> np.ndarray:
-        """The entries of a full-length vector this process keeps: its share of a checkpoint (serial:
-        all of them; an MPI rank: those of its local dofs, owned and ghosts)."""
-        return x
-
     def local_signature(self) -> str:
-        """The SHA-256 of the dofs whose entries :meth:`local_entries` keeps ("" serially: all of them)."""
+        """The SHA-256 of the global dofs of the model's vectors' entries ("" serially: all of them, in order)."""
         return ""
 
-    def from_local_entries(self, values: np.ndarray) -> np.ndarray:
-        """The full-length vector whose kept entries are ``values`` (the inverse of :meth:`local_entries`
-        on the entries this process reads; ValueError for a vector of another length)."""
+    def checked_vector(self, values: np.ndarray) -> np.ndarray:
+        """A vector read back (a checkpoint's) as one of the model's: ValueError for another length."""
         if values.shape != (self.n_dofs,):
             raise ValueError(f"{values.shape[0]} entries, this model has {self.n_dofs} dofs")
         return values.astype(float)

@@ -218,8 +218,8 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
     if signature is not None and str(signature) != model.local_signature():
         raise CaseError(f"{out / checkpoint.rank_file(rank)}: --resume: the checkpoint was written for another "
                         "split of the model over the ranks (this rank's dofs differ); rerun with --overwrite")
-    try:  # the vectors' entries this process keeps (an MPI rank: its local dofs')
-        whole = model.from_local_entries
+    try:  # the model's vectors (an MPI rank's: on its local dofs)
+        whole = model.checked_vector
         position = replace(position, u=whole(position.u),
                            f_int=None if position.f_int is None else whole(position.f_int),
                            u_before=None if position.u_before is None else whole(position.u_before))
@@ -363,7 +363,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         mesh = built.mesh
         log(f"model: {mesh.cells.shape[0]} {mesh.cell_type} cells, {mesh.n_nodes} nodes"
             + (f", {mesh.interfaces.shape[0]} interface cells" if mesh.interfaces.size else "")
-            + f", {model.n_dofs} unknowns")
+            + f", {model.n_dofs_global} unknowns")
         for note in built.program.notes + history.notes:
             log(note)
         for c, group in zip(case.cohesive_sets, built.cohesives):
@@ -382,7 +382,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             if warn is not None and lead:
                 warn(w)
 
-        def on_step(info: StepInfo) -> None:  # on MPI ranks, u and f_int are valid on the rank's own dofs
+        def on_step(info: StepInfo) -> None:  # on MPI ranks, u and f_int are on the rank's local dofs
             rec = point_rows(built, info.u)
             row = history.row(info, rec)
             gather_events()
@@ -403,7 +403,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
             if distribution is None:
                 solver = make_solver(sol.linear, built.mesh.nodes, built.model.n_dofs, enrichment=enriched)
             else:
-                solver = distribution.make_solver(sol.linear.value, built.model.n_dofs, built.mesh.dim, enriched)
+                solver = distribution.make_solver(sol.linear.value, built.model.n_dofs_global, built.mesh.dim, enriched)
             log(f"linear solver: {solver.name} ([solver] linear = '{sol.linear.value}')")
             result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
                                 start=start, should_stop=stop, u0=built.program.u0, f0=built.program.f0)

@@ -75,6 +75,7 @@ def system(built, comm, u: np.ndarray) -> dict:
     local_vectors = comm.allreduce(int(model.n_dofs != lay.local.shape[0] or asm.residual.shape != (model.n_dofs,)))
     n_ghosts = comm.gather(int(lay.local.shape[0] - lay.owned.shape[0]), root=0)
     n_local = comm.gather(int(model.n_dofs), root=0)
+    n_global = comm.gather(int(model.n_dofs_global), root=0)  # what sizes the solver's choice, alike
     # the rank's matrix is numbered on its local dofs only: its pattern has a row per local dof
     rows_of_pattern = comm.allreduce(int(model.pattern.n != lay.local.shape[0]))
     out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error),
@@ -87,6 +88,7 @@ def system(built, comm, u: np.ndarray) -> dict:
         out["pairs"] = np.concatenate(owned_pairs)
         out["n_ghosts"] = np.array(n_ghosts)
         out["n_local"] = np.array(n_local)
+        out["n_global"] = np.array(n_global)
         out["n_if_cells"] = np.array(built.mesh.interfaces.shape[0])
         out["n_cells"] = np.array(built.mesh.cells.shape[0])
     return out

@@ -409,6 +409,7 @@ def test_global_matrix_ownership_and_ghosts(tmp_path, n):
     assert int(par["pattern_not_local"]) == 0  # each rank's pattern: its local dofs' rows only
     assert int(par["vectors_not_local"]) == 0  # and its residual their entries only
     assert par["n_local"].max() < (0.6 if n == 2 else 0.45) * ref.shape[0]  # a share of the whole, and ghosts
+    np.testing.assert_array_equal(par["n_global"], [ref.shape[0]] * n)  # the whole model's, on every rank
 
 
 def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):

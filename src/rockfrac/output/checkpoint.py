@@ -16,7 +16,7 @@ refused by NumPy before anything is built from it). It carries
 - ``position.*``, ``run.*`` and ``group<k>.<name>``: where the stepping is and the groups' state.
 
 An MPI run (rockfrac.parallel) gathers nothing: every rank writes its position, with its vectors'
-entries on its own local dofs (:meth:`rockfrac.model.Model.local_entries`), and its groups' state,
+entries on its own local dofs (:class:`rockfrac.parallel.layout.Layout`), and its groups' state,
 rank 0 into ``checkpoint.npz`` with the run's counters and ``run.ranks``, each other rank into
 ``checkpoint.rank<r>.npz`` (:func:`rank_file`; ``position.count`` the step it was written at). It
 resumes on the same number of ranks.

@@ -211,7 +211,7 @@ class History:
         return [m.note for m in self.monitors]
 
     def elastic_energy(self, u: np.ndarray) -> float:
-        """[J, per unit thickness in 2D] (u: valid on the rank's dofs; the groups' sums over the ranks)."""
+        """[J, per unit thickness in 2D] (u: on the rank's local dofs; the groups' sums over the ranks)."""
         return self.model.reduce_sum(sum(g.elastic_energy(u) for g in self.model.groups)) / self.thickness
 
     def dissipated(self) -> float:

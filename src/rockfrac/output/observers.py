@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from abc import ABC
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -210,8 +210,8 @@ def position_from_arrays(a: dict[str, np.ndarray]) -> Position:
 class Checkpoints(Observer):
     """A checkpoint every ``every`` steps (0: never), with the hash of the history written so far.
 
-    On a distributed ``model`` every rank writes its own file, nothing gathered: the position with the
-    entries of its vectors on its local dofs (owned and ghosts: all it reads) and its groups' state;
+    On a distributed ``model`` every rank writes its own file, nothing gathered: the position with its
+    vectors (on its local dofs, owned and ghosts: all it holds) and its groups' state;
     rank 0's (``checkpoint.npz``) also has the run's counters and the hash of ``history`` (its CSV).
     """
 
@@ -225,9 +225,6 @@ class Checkpoints(Observer):
         if not self.every or info.step % self.every or info.position is None:
             return
         model, p = self.model, info.position
-        keep = model.local_entries
-        p = replace(p, u=keep(p.u), f_int=None if p.f_int is None else keep(p.f_int),
-                    u_before=None if p.u_before is None else keep(p.u_before))
         states = [g.checkpoint_state() for g in model.groups]
         ranks = {"ranks": float(model.reduce_sum(1))} if model.distributed else {}
         arrays = position_arrays(p)

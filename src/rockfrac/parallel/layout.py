@@ -66,12 +66,6 @@ class Layout:
         self._ghosts = PETSc.Scatter().create(self._vec, index, self._seq, None)
         self._modes = None
 
-    def destroy(self) -> None:
-        """Free the PETSc objects (a layout made again after the model's dofs changed)."""
-        for obj in (self._ghosts, self._seq, self._vec, self.lgmap, self._modes):
-            if obj is not None:
-                obj.destroy()
-
     def owner(self, petsc_rows: np.ndarray) -> np.ndarray:
         """The rank owning each PETSc row."""
         return np.searchsorted(self.starts, petsc_rows, side="right") - 1

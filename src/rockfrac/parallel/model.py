@@ -1,8 +1,10 @@
 """One MPI rank's model: its elements' groups, assembled into PETSc's distributed matrix and vectors.
 
 Every rank builds the same split mesh and its partition (:mod:`rockfrac.mesh.partition`), and groups
-holding only its own cells and interface cells, whose state stays on the rank. ``assemble`` runs
-the groups as the serial model does, on the rank's local dofs, then:
+holding only its own cells and interface cells, whose state stays on the rank. The extra dofs are
+numbered alike on every rank (the global numbering); then the groups are renumbered into the rank's
+local numbering (:class:`rockfrac.parallel.layout.Layout`), in which all its vectors are: none has
+the whole model's length. ``assemble`` runs the groups as the serial model does, then:
 
 - the internal forces are summed over the ranks in a PETSc vector (each rank adds its elements'
   contributions, owned or not) and brought back to the local entries;
@@ -86,6 +88,10 @@ class DistributedModel(Model):
     @property
     def n_u(self) -> int:
         return self.layout.n_local_u
+
+    @property
+    def n_dofs_global(self) -> int:
+        return self.layout.n
 
     def local_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return self.layout.numbering.local_part(dofs)

@@ -4,7 +4,7 @@ serial run, on a distributed model (:mod:`rockfrac.parallel.model`).
 Rank 0 partitions the split mesh (METIS) and sends the partition to the others; every rank builds
 its own groups and takes every step with the others (each collective call in the same order).
 The converged steps come to ``on_step`` on every rank with the displacements and internal forces
-valid on the rank's local dofs; :meth:`Layout.gather` assembles a whole vector.
+on the rank's local dofs; :meth:`Layout.gather` assembles a whole vector.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def run_distributed(built: Built, on_step: Callable[[StepInfo], None],
     """Run the stages of a distributed build with the case's [solver] options and its linear solver
     ('auto': MUMPS's LU, or GMRES + GAMG on a large 3D model)."""
     newton, stepping = engine_options(built)
-    solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs, built.mesh.dim,
+    solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs_global, built.mesh.dim,
                                 any(isinstance(g, HeldEnrichment) for g in built.model.groups))
     log(f"linear solver: {solver.name} on {built.model.comm.Get_size()} ranks")  # type: ignore[attr-defined]
     return run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,

@@ -90,7 +90,7 @@ def _linear(grad: np.ndarray, const: float = 0.0, ranks: Ranks | None = None) ->
 
 
 def _dot(x: np.ndarray, y: np.ndarray, ranks: Ranks | None) -> float:
-    """x . y of two vectors valid on the rank's dofs, each dof once over the ranks (x owned-restricted)."""
+    """x . y of two vectors on the rank's local dofs, each dof once over the ranks (x owned-restricted)."""
     return float(x @ y) if ranks is None or not ranks.distributed else ranks.reduce_sum(float(ranks.owned(x) @ y))
 
 

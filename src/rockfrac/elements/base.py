@@ -38,9 +38,9 @@ class Evaluation:
 
 
 class ElementGroup(ABC):
-    """A group of elements of one kind on the global dof numbering.
+    """A group of elements of one kind on the model's dof numbering.
 
-    dofs: (n_el, nd) dof indices of each element's vector and block (the model's numbering: global, or an MPI
+    dofs: (n_el, nd) dof indices of each element's vector and block (global, or an MPI
     rank's local one after :meth:`renumber`).
     n_extra: unknowns the group owns beyond the displacements (RP multipliers), numbered by
     :meth:`set_offset`. constant: its tangent never changes and its residual is linear (assembled

@@ -54,6 +54,13 @@ def test_the_dofs_are_renumbered_in_one_contiguous_block_per_part(everywhere_mes
         assert np.all(p.node_part[p.owned_dofs(r) // 2] == r) and hi - lo == p.owned_dofs(r).shape[0]
     if n == 1:
         np.testing.assert_array_equal(new, np.arange(2 * mesh.n_nodes))  # serial numbering unchanged
+    with_extras = p.with_extras(np.arange(7) % n)  # blocks of extra dofs owned round the parts
+    for r in range(n):  # a rank's set-up: everything from one sort, as from the methods one by one
+        new_r, starts, owned_r = with_extras.numbering(r)
+        np.testing.assert_array_equal(new_r, with_extras.new_dofs())
+        np.testing.assert_array_equal(owned_r, with_extras.owned_dofs(r))
+        np.testing.assert_array_equal(starts, [with_extras.owned_range(q)[0] for q in range(n)] + [with_extras.n_dofs])
+        assert (starts[r], starts[r + 1]) == with_extras.owned_range(r)
 
 
 def test_an_interface_cell_ties_the_cells_on_both_its_sides(everywhere_mesh):

@@ -66,6 +66,18 @@ class Partition:
         new[order] = np.arange(order.shape[0])
         return (self.dim * new[:, None] + np.arange(self.dim)).ravel()
 
+    def numbering(self, part: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """From one sort of the blocks (a rank's set-up sorts once, not once per part): every dof's
+        renumbered index (:meth:`new_dofs`), each part's first renumbered dof (n_parts + 1,), and the
+        part's own dofs (:meth:`owned_dofs`)."""
+        order, starts = self._blocks()
+        new = np.empty_like(order)
+        new[order] = np.arange(order.shape[0])
+        blocks = order[starts[part]:starts[part + 1]]
+        comps = np.arange(self.dim)
+        return ((self.dim * new[:, None] + comps).ravel(), self.dim * starts,
+                (self.dim * blocks[:, None] + comps).ravel())
+
     def owned_range(self, part: int) -> tuple[int, int]:
         """The part's block of renumbered dofs [start, end)."""
         _, starts = self._blocks()

@@ -36,10 +36,10 @@ class Layout:
         PETSc = petsc()
         self.comm, self.rank, self.size = comm, rank, comm.Get_size()
         self.n = partition.n_dofs
-        self.new = partition.new_dofs()  # global (rockfrac) dof -> PETSc index
-        self.lo, self.hi = partition.owned_range(rank)
-        self.owned = partition.owned_dofs(rank)  # global dofs in PETSc order
-        self.starts = np.array([partition.owned_range(r)[0] for r in range(self.size)] + [self.n])
+        # global (rockfrac) dof -> PETSc index; each rank's first PETSc row; the owned global dofs in
+        # PETSc order
+        self.new, self.starts, self.owned = partition.numbering(rank)
+        self.lo, self.hi = int(self.starts[rank]), int(self.starts[rank + 1])
         self.n_displacement = nodes.size  # rockfrac numbers the displacements first, then multipliers
         reach = np.unique(np.asarray(reach, dtype=np.int64))
         order = np.lexsort((self.new[reach], reach >= self.n_displacement))  # displacements first

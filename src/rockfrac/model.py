@@ -113,6 +113,11 @@ class Model:
         out[: f.shape[0]] = f
         return out
 
+    def summed(self, f: np.ndarray) -> np.ndarray:
+        """The sum over the ranks of vectors over the first global dofs, each rank's from its own cells
+        and sides, as a vector of the model's (serial: :meth:`localized`)."""
+        return self.localized(f)
+
     def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
         """The matrix's size and each dof's row in it (None: the dof numbering itself); an MPI rank's
         model numbers only its local dofs (rockfrac.parallel.model)."""

@@ -18,6 +18,7 @@ from rockfrac.case.initial_state import (
     gravity_forces,
     in_situ_forces,
     in_situ_tractions,
+    own_sides,
     set_initial_stress,
 )
 from rockfrac.case.messages import require
@@ -265,8 +266,9 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
             except CaseError as err:
                 raise CaseError(f"{path}: {err}") from None
             model.update_constant_force()
-    f_gravity0 = gravity_forces(bulks, densities, mesh, g0, "[initial] gravity", path, model)
-    f_situ = in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model) if initial is not None else 0.0
+    # the loads of the rank's own cells and sides (serial: all of them), summed over the ranks below
+    f_gravity0 = gravity_forces(bulks, densities, mesh, g0, "[initial] gravity", path)
+    f_situ = in_situ_forces(mesh, bulks, initial, outer, in_situ_factor) if initial is not None else 0.0
     f0 = f_gravity0 + f_situ
     # the stages
     presc: dict[int, float] = {}
@@ -311,25 +313,25 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         surface_edges, surface_tractions = [], []  # each loaded edge (face) and its traction
         for group, p in pressure.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
-            (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, sides, p, f_end)
+            (edge_pressure if dim == 2 else face_pressure)(mesh.nodes, own_sides(mesh, bulks, sides), p, f_end)
             if sides.size:
                 surface_edges.append(sides)
                 surface_tractions.append(_at_nodes(-p * side_normals(mesh.nodes, sides), sides))
         for group, vec in traction.items():
             sides = (mesh.edge_sets if dim == 2 else mesh.face_sets)[group]
-            (edge_traction if dim == 2 else face_traction)(mesh.nodes, sides, vec, f_end)
+            (edge_traction if dim == 2 else face_traction)(mesh.nodes, own_sides(mesh, bulks, sides), vec, f_end)
             if sides.size:
                 surface_edges.append(sides)
                 surface_tractions.append(_at_nodes(np.broadcast_to(np.asarray(vec, dtype=float),
                                                                    (sides.shape[0], dim)), sides))
-        f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path, model)
+        f_end += gravity_forces(bulks, densities, mesh, gravity, f"{key} gravity", path)
         if initial is not None:
-            f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor, model)
+            f_end += in_situ_forces(mesh, bulks, initial, outer, in_situ_factor)
             if model.enrichment_version() is not None:  # nodal cracks: their share where they cross the boundary
                 loaded, t_situ = in_situ_tractions(mesh, bulks, initial, outer, in_situ_factor)
                 surface_edges.append(loaded)
                 surface_tractions.append(t_situ)
-        f_full = model.localized(f_end)
+        f_full = model.summed(f_end)
         dofs, values = _prescribed(model, presc)
         if st.control == "energy":
             _check_still_supports(presc, held, key, path)
@@ -343,7 +345,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         stops.append(st.stop)
         sections.append(st)
     u0 = model.initial_unknowns()
-    f0_full = model.localized(np.atleast_1d(np.asarray(f0, dtype=float)))
+    f0_full = model.summed(np.atleast_1d(np.asarray(f0, dtype=float)))
     if stages and model.enrichment_version() is not None:  # nodal cracks' share at t = 0
         if initial is not None:
             edges0, tractions0 = in_situ_tractions(mesh, bulks, initial, outer, np.ones(outer.shape[0]))

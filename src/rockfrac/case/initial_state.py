@@ -70,6 +70,11 @@ def _cell_regions(n_cells: int, bulks: list) -> np.ndarray:
     return out
 
 
+def own_sides(mesh: Mesh, bulks: list, sides: np.ndarray) -> np.ndarray:
+    """The boundary sides whose cell is one of the groups' (an MPI rank's own: each side on one rank)."""
+    return sides[_cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)] >= 0]
+
+
 def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
     """The cell each boundary side belongs to."""
     all_sides = cell_sides(mesh.cells, mesh.dim)
@@ -79,11 +84,10 @@ def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
 
 
 def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
-                   factor: np.ndarray, model: Model | None = None) -> np.ndarray:
+                   factor: np.ndarray) -> np.ndarray:
     """Nodal forces of sigma0 . n on boundary sides (each side with the field of its cell's region),
-    times a factor per side (on a distributed ``model``: the sides of every rank's cells)."""
-    if model is not None and model.distributed:
-        return model.reduce_sum(in_situ_forces(mesh, bulks, initial, sides, factor))
+    times a factor per side, over the global displacement dofs: the sides of the groups' cells only
+    (an MPI rank's share; :meth:`rockfrac.model.Model.summed` adds the ranks')."""
     f = np.zeros(mesh.dim * mesh.n_nodes)
     if sides.size == 0:
         return f
@@ -151,9 +155,10 @@ def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: Initia
 
 
 def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, g: np.ndarray, key: str,
-                   path: str, model: Model | None = None) -> np.ndarray:
-    """Nodal forces of gravity g on every region (density x g), CaseError if a region has no density
-    (on a distributed ``model``: the groups' cells of every rank)."""
+                   path: str) -> np.ndarray:
+    """Nodal forces of gravity g on every region (density x g) over the global displacement dofs, CaseError
+    if a region has no density: the groups' cells only (an MPI rank's share; :meth:`rockfrac.model.Model.summed`
+    adds the ranks')."""
     f = np.zeros(mesh.dim * mesh.n_nodes)
     if not np.any(g):
         return f
@@ -163,4 +168,4 @@ def gravity_forces(bulks: list, densities: dict[str, float | None], mesh: Mesh, 
             raise CaseError(f"{path}: {key}: region {b.region!r} has no density (give density [kg/m^3] in its "
                             "[bulk] or [[materials]] section)")
         body_force(b.cells, nodal_volumes(mesh.nodes, b.cells, b.ref, b.wdet), rho, g, f)
-    return model.reduce_sum(f) if model is not None and model.distributed else f
+    return f

@@ -106,6 +106,9 @@ class DistributedModel(Model):
         out[inside] = f[glob[inside]]
         return out
 
+    def summed(self, f: np.ndarray) -> np.ndarray:
+        return self.layout.sum_local(self.localized(f))
+
     def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
         """The rank's matrix is numbered on its local dofs in PETSc order: its pattern is the local
         CSR that PETSc takes (no pattern in rockfrac's numbering, no map between the two)."""

@@ -47,10 +47,10 @@ class Layout:
         self.n_local_u = int(np.count_nonzero(reach < self.n_displacement))
         self.local_petsc = self.new[self.local].astype(PETSc.IntType)
         self.numbering = LocalNumbering(self.local)
-        missing = np.setdiff1d(self.owned, self.local)
-        if missing.size:  # an owned dof no element of the rank touches: not a partition of this mesh
-            raise ValueError(f"rank {rank} owns dofs {missing[:5].tolist()} that none of its elements touches")
-        self.owned_local = self.numbering.local(self.owned)  # the owned dofs' local numbers, PETSc order
+        self.owned_local, held = self.numbering.local_part(self.owned)  # their local numbers, PETSc order
+        if not held.all():  # an owned dof no element of the rank touches: not a partition of this mesh
+            raise ValueError(f"rank {rank} owns dofs {self.owned[~held][:5].tolist()} that none of its elements "
+                             "touches")
         self.owned_mask = np.zeros(self.local.shape[0], dtype=np.bool_)
         self.owned_mask[self.owned_local] = True
         self.rows = np.argsort(self.local_petsc, kind="stable")  # matrix row -> local dof

@@ -55,12 +55,21 @@ def test_the_dofs_are_renumbered_in_one_contiguous_block_per_part(everywhere_mes
     if n == 1:
         np.testing.assert_array_equal(new, np.arange(2 * mesh.n_nodes))  # serial numbering unchanged
     with_extras = p.with_extras(np.arange(7) % n)  # blocks of extra dofs owned round the parts
-    for r in range(n):  # a rank's set-up: everything from one sort, as from the methods one by one
-        new_r, starts, owned_r = with_extras.numbering(r)
-        np.testing.assert_array_equal(new_r, with_extras.new_dofs())
+    whole_new = with_extras.new_dofs()
+    for r in range(n):  # a rank's piece (its cells, their nodes): the whole numbering, nothing whole-sized
+        cells = np.flatnonzero(p.cell_part == r)
+        interfaces = np.flatnonzero(p.interface_part == r)
+        nodes = np.unique(np.concatenate([mesh.cells[cells].ravel(), mesh.interfaces[interfaces].ravel()]))
+        piece = with_extras.of_piece(r, cells, interfaces, nodes)
+        starts, owned_r, petsc_of = piece.numbering()
         np.testing.assert_array_equal(owned_r, with_extras.owned_dofs(r))
         np.testing.assert_array_equal(starts, [with_extras.owned_range(q)[0] for q in range(n)] + [with_extras.n_dofs])
-        assert (starts[r], starts[r + 1]) == with_extras.owned_range(r)
+        touched = np.concatenate([(2 * nodes[:, None] + np.arange(2)).ravel(), 2 * mesh.n_nodes + np.arange(14)])
+        np.testing.assert_array_equal(petsc_of(touched), whole_new[touched])
+        outside = np.setdiff1d(np.arange(mesh.n_nodes), nodes)
+        if outside.size:
+            with pytest.raises(ValueError, match="outside this rank's piece"):
+                petsc_of(2 * outside[:1])
 
 
 def test_an_interface_cell_ties_the_cells_on_both_its_sides(everywhere_mesh):

@@ -97,25 +97,27 @@ class Model:
         return self.dim * self.n_nodes
 
     def local_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(the model's numbers of those of the global ``dofs`` its vectors hold, where they are among
-        ``dofs``): serially all of them, as they are; an MPI rank's local ones."""
+        """(the model's numbers of those of the ``dofs`` of its mesh its vectors hold, where they are
+        among ``dofs``): serially all of them, as they are; an MPI rank's local ones (of the dofs of its
+        piece of the mesh, :mod:`rockfrac.mesh.piece`)."""
         dofs = np.asarray(dofs, dtype=np.int64)
         return dofs, np.ones(dofs.shape, dtype=bool)
 
     def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
-        """The global numbers of dofs of the model's numbering (serially the same)."""
+        """The whole model's numbers of dofs of the model's numbering (serially the same)."""
         return np.asarray(dofs, dtype=np.int64)
 
     def localized(self, f: np.ndarray) -> np.ndarray:
-        """A vector over the first global dofs (the displacements, or all) as a vector of the model's
-        (n_dofs,), zero on the others: an MPI rank keeps the entries of its local dofs."""
+        """A vector over the first dofs of the model's mesh (the displacements, or all) as a vector of
+        the model's (n_dofs,), zero on the others: an MPI rank keeps the entries of its local dofs (from
+        a vector over its piece of the mesh)."""
         out = np.zeros(self.n_dofs)
         out[: f.shape[0]] = f
         return out
 
     def summed(self, f: np.ndarray) -> np.ndarray:
-        """The sum over the ranks of vectors over the first global dofs, each rank's from its own cells
-        and sides, as a vector of the model's (serial: :meth:`localized`)."""
+        """The sum over the ranks of vectors over the first dofs of their meshes, each rank's from its
+        own cells and sides of its piece, as a vector of the model's (serial: :meth:`localized`)."""
         return self.localized(f)
 
     def _pattern_rows(self) -> tuple[int, np.ndarray | None]:
@@ -327,9 +329,13 @@ class Model:
         return [value]
 
     def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
-        """x at the given global dofs, each from the rank that owns it (a collective call on MPI ranks,
-        which may ask for different dofs; serial: x[dofs])."""
+        """x at the given dofs of the model's mesh (an MPI rank's piece), each from the rank that owns
+        it (a collective call on MPI ranks, which may ask for different dofs; serial: x[dofs])."""
         return x[dofs]
+
+    def gather_lead(self, value: Any) -> list[Any] | None:
+        """Every rank's value, in rank order, on rank 0, None on the others (serial: [value])."""
+        return [value]
 
     def exchange(self, parts: list[Any]) -> list[Any]:
         """parts[r] sent to rank r; what every rank sent to this one, in rank order (serial: parts)."""

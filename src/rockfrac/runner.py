@@ -19,7 +19,6 @@ import tomli_w
 
 from rockfrac.analytic import penalty_rule, plane_strain_modulus
 from rockfrac.case.build import Built, Distribution, build, mean_cell_size
-from rockfrac.case.build_program import resolve_monitors
 from rockfrac.case.schema import Case, load_case
 from rockfrac.elements.cse_groups import CohesiveRP
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
@@ -74,13 +73,16 @@ def case_warnings(built: Built) -> list[str]:
     out = []
     model = built.model
     if any(isinstance(g, CohesiveRP) for g in built.cohesives):  # the pairs of every set, on every rank
-        minus, plus = (np.concatenate([a for part in model.allgather([getattr(g.points, side) for g in built.cohesives])
+        place = built.mesh.place  # an MPI rank's piece: the whole mesh's node numbers
+        ids = place.nodes if place is not None else np.arange(built.mesh.n_nodes)
+        minus, plus = (np.concatenate([a for part in model.allgather([ids[getattr(g.points, side)]
+                                                                      for g in built.cohesives])
                                        for a in part]) for side in ("minus", "plus"))
-        on_loops = looped_pairs(minus, plus, built.mesh.n_nodes)
+        on_loops = looped_pairs(minus, plus, place.n_nodes if place is not None else built.mesh.n_nodes)
         looped = set(zip(minus[on_loops].tolist(), plus[on_loops].tolist()))
     for coh, group in zip(built.case.cohesive_sets, built.cohesives):
         if isinstance(group, CohesiveRP):
-            mine = sum(pair in looped for pair in zip(group.points.minus.tolist(), group.points.plus.tolist()))
+            mine = sum(pair in looped for pair in zip(ids[group.points.minus].tolist(), ids[group.points.plus].tolist()))
             count = model.reduce_sum(mine)
             if count:
                 out.append(f"RP CSE {group.name!r}: {count} of its points lie on loops of surfaces round a node (a node "
@@ -94,7 +96,8 @@ def case_warnings(built: Built) -> list[str]:
         e_plane = plane_strain_modulus(soft_bulk.E, soft_bulk.nu)
         # the bulk's length along the load between surfaces: the specimen for its one crack, a cell
         # for surfaces on many edges
-        length = float(np.ptp(built.mesh.nodes[:, 1])) if coh.where.value == "crack" else mean_cell_size(built.mesh)
+        whole = built.whole if built.whole is not None else built.mesh  # the whole mesh's, on the rank that writes
+        length = float(np.ptp(whole.nodes[:, 1])) if coh.where.value == "crack" else mean_cell_size(whole)
         kn, kt = given(coh.kn, "kn"), given(coh.kt, "kt")
         which = f" ({group.name})" if len(built.case.cohesive_sets) > 1 else ""  # one line per set: named
         k = min(kn, kt)
@@ -138,8 +141,8 @@ def history_row(built: Built, info: StepInfo, rec: dict | None) -> dict:
 def make_history(built: Built, path: str = "<case>") -> History:
     """The history quantities of a built case, its stop rules checked against them."""
     history = History(built.mesh, built.model, thickness=built.thickness, u0=built.program.u0, f0=built.program.f0,
-                      monitors=resolve_monitors(built.case, built.mesh, path),
-                      axial_dofs=built.top_y_dofs if built.case.loading is not None else None,
+                      monitors=built.monitors, axial_dofs=built.top_y_dofs if built.case.loading is not None else None,
+                      axial_count=built.axial_count, whole=built.whole,
                       means=tuple(n for g in built.cohesives for n in g.law.record_names if not n.startswith("eps_")),
                       separated_fraction=built.case.output.separated_fraction)
     for m in history.monitors:
@@ -361,9 +364,10 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         if start is not None:
             log(f"resumed from the checkpoint at step {start.count}")
         mesh = built.mesh
-        log(f"model: {mesh.cells.shape[0]} {mesh.cell_type} cells, {mesh.n_nodes} nodes"
-            + (f", {mesh.interfaces.shape[0]} interface cells" if mesh.interfaces.size else "")
-            + f", {model.n_dofs_global} unknowns")
+        n_cells, n_nodes, n_if = (mesh.place.n_cells, mesh.place.n_nodes, mesh.place.n_interfaces) \
+            if mesh.place is not None else (mesh.cells.shape[0], mesh.n_nodes, mesh.interfaces.shape[0])
+        log(f"model: {n_cells} {mesh.cell_type} cells, {n_nodes} nodes"
+            + (f", {n_if} interface cells" if n_if else "") + f", {model.n_dofs_global} unknowns")
         for note in built.program.notes + history.notes:
             log(note)
         for c, group in zip(case.cohesive_sets, built.cohesives):
@@ -372,8 +376,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
                 log(f"cohesive surfaces ({which}{c.where.value}): viscous (Duvaut-Lions) regularisation, relaxation time "
                     f"{c.viscosity:g} (pseudo-time, a stage = 1); its extra dissipation is history.csv's D_viscous")
         if distribution is not None:
-            log(f"MPI: {model.reduce_sum(1)} ranks, the mesh split by METIS ({built.mesh.cells.shape[0]} cells, "
-                f"{built.mesh.interfaces.shape[0]} interface cells)")
+            log(f"MPI: {model.reduce_sum(1)} ranks, the mesh split by METIS ({n_cells} cells, "
+                f"{n_if} interface cells), each rank building on its piece of it")
         if on_start is not None and lead:
             on_start()
         warnings = case_warnings(built)
@@ -442,14 +446,21 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     try:
         if case.output.picture:
             from rockfrac.output.crack_map import save_crack_map
-            from rockfrac.output.fields import step_output
+            from rockfrac.output.fields import step_output, step_piece
             from rockfrac.output.plots import magnification
+            from rockfrac.output.vtk import join_pieces
 
-            u_all = model.gather(result.u)
-            mag = magnification(built, u_all)
             view = "3d" if built.mesh.dim == 3 and case.mesh.kind.value != "specimen" else "plane"
-            fields = step_output(built, result.u)  # every rank's part (collective)
+            if distribution is None:
+                fields, u_all = step_output(built, result.u), result.u
+            else:  # every rank's piece (collective), joined on rank 0
+                pieces = model.gather_lead(step_piece(built, result.u))
             if lead:
+                if distribution is not None:
+                    assert pieces is not None and built.whole is not None
+                    fields = join_pieces(pieces)
+                    u_all = fields.point_data["displacement"][:built.whole.n_nodes, :built.whole.dim].ravel()
+                mag = magnification(built, u_all, mesh=built.whole)
                 cracks = save_crack_map(out / "crack_map.png", fields, mag, view=view,
                                         title=f"{case.title or 'rockfrac run'}: step {result.steps}, deformed "
                                               f"x{mag:g}")
@@ -478,4 +489,5 @@ def _size(built: Built) -> float:
     scale), else the mesh's extent along x [m]."""
     if built.case.loading is not None:
         return built.case.mesh.width
-    return float(np.ptp(built.mesh.nodes[:, 0])) or 1.0
+    lo, hi = built.mesh.bounds  # the whole mesh's, also on an MPI rank's piece of it
+    return float(hi[0] - lo[0]) or 1.0

@@ -57,16 +57,19 @@ def system(built, comm, u: np.ndarray) -> dict:
     model, lay = built.model, built.model.layout
     model.set_dirichlet(built.stages[0].dirichlet)
     model.begin_step()
-    u = model.localized(u)  # the rank's local entries of the whole vector
+    place = built.mesh.place  # the rank's piece of the mesh in the whole one
+    dim = built.mesh.dim
+    u = model.localized(u.reshape(-1, dim)[place.nodes].ravel())  # the rank's local entries of the whole vector
     asm = model.assemble(u, np.zeros(model.n_dofs), np.zeros(model.n_dofs))  # from the virgin state
     a = model.apply_dirichlet(asm.matrix).mat
     indptr, cols, vals = a.getValuesCSR()
     rows = lay.owned[np.repeat(np.arange(indptr.shape[0] - 1), np.diff(indptr))]
-    old = np.empty(lay.n, dtype=np.int64)
-    old[lay.new] = np.arange(lay.n)  # PETSc index -> rockfrac dof
+    old = np.empty(lay.n, dtype=np.int64)  # PETSc index -> rockfrac dof, from every rank's local dofs
+    for petsc_rows, dofs in comm.allgather((lay.local_petsc, lay.local)):
+        old[petsc_rows] = dofs
     parts = comm.gather((rows, old[cols], vals), root=0)
-    cells = np.concatenate([g.cell_ids for g in built.bulks] + [np.zeros(0, dtype=np.int64)])
-    pairs = np.concatenate([g.points.minus for g in built.cohesives] + [np.zeros(0, dtype=np.int64)])
+    cells = place.cells[np.concatenate([g.cell_ids for g in built.bulks] + [np.zeros(0, dtype=np.int64)])]
+    pairs = place.nodes[np.concatenate([g.points.minus for g in built.cohesives] + [np.zeros(0, dtype=np.int64)])]
     owned_cells = comm.gather(cells, root=0)
     owned_pairs = comm.gather(pairs, root=0)
     # ghosts: a vector whose owned entries are 1 + the global dof, scattered to every local entry
@@ -76,6 +79,8 @@ def system(built, comm, u: np.ndarray) -> dict:
     n_ghosts = comm.gather(int(lay.local.shape[0] - lay.owned.shape[0]), root=0)
     n_local = comm.gather(int(model.n_dofs), root=0)
     n_global = comm.gather(int(model.n_dofs_global), root=0)  # what sizes the solver's choice, alike
+    # each rank's piece of the mesh, and who holds the whole one
+    piece = comm.gather((built.mesh.cells.shape[0], built.mesh.n_nodes, built.whole is not None), root=0)
     # the rank's matrix is numbered on its local dofs only: its pattern has a row per local dof
     rows_of_pattern = comm.allreduce(int(model.pattern.n != lay.local.shape[0]))
     out = {"residual": lay.gather(asm.residual), "ghost_error": np.array(ghost_error),
@@ -89,8 +94,10 @@ def system(built, comm, u: np.ndarray) -> dict:
         out["n_ghosts"] = np.array(n_ghosts)
         out["n_local"] = np.array(n_local)
         out["n_global"] = np.array(n_global)
-        out["n_if_cells"] = np.array(built.mesh.interfaces.shape[0])
-        out["n_cells"] = np.array(built.mesh.cells.shape[0])
+        out["piece_cells"], out["piece_nodes"], out["holds_whole"] = (np.array(v) for v in zip(*piece))
+        out["n_nodes"] = np.array(place.n_nodes)
+        out["n_if_cells"] = np.array(place.n_interfaces)
+        out["n_cells"] = np.array(place.n_cells)
     return out
 
 

@@ -24,10 +24,11 @@ from rockfrac.case.build_groups import (  # noqa: F401 (re-exported: the case ->
     stiffest_modulus,
 )
 from rockfrac.case.build_mesh import insert_cohesive, make_mesh, mean_cell_size  # noqa: F401
-from rockfrac.case.build_program import Program, build_program
+from rockfrac.case.build_program import Program, build_program, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.program import StageSection
 from rockfrac.case.schema import Case
+from rockfrac.case.shares import Share, cut_shares
 from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
@@ -36,19 +37,21 @@ from rockfrac.elements.interface_points import interface_points, interface_point
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh
-from rockfrac.mesh.partition import Partition
+from rockfrac.mesh.partition import Partition, RankPartition
+from rockfrac.output.history import Monitor
 from rockfrac.model import Model
 from rockfrac.solve.stepping import Stage
 
 
 @dataclass(frozen=True)
 class Distribution:
-    """One MPI rank's share of a run (:mod:`rockfrac.parallel`): the partition of the split mesh
-    (the same on every rank), this rank's part, and the model over the part's elements."""
+    """One MPI rank's share of a run (:mod:`rockfrac.parallel`): its :class:`Share` (rank 0 makes the
+    whole mesh and every rank's share from it, ``share(make)``: ``make(n_ranks, split)`` on rank 0),
+    this rank, and the model over its elements."""
 
-    split: Callable[[Mesh], Partition]
+    share: Callable[[Callable[[int, Callable[[Mesh], Partition]], tuple[Mesh, list[Share]]]], Share]
     rank: int
-    make_model: Callable[[Mesh, list[ElementGroup], Partition], Model]
+    make_model: Callable[[Mesh, list[ElementGroup], RankPartition], Model]
     make_solver: Callable[[str, int, int, bool], Any]  # [solver] linear, dofs, dimension, nodal cracks -> solver
     exchange: Any = None  # the ranks' allgather, before the model exists (rockfrac.elements.ede_paths.Exchange)
 
@@ -64,7 +67,9 @@ class Built:
     thickness: float  # forces are reported per unit thickness: 1 in 2D, T for the plane-strain hex8 [m]
     bulks: list[SolidGroup] = field(default_factory=list)  # one group per material region
     cohesives: list[CohesiveEP | CohesiveRP] = field(default_factory=list)  # one CSE group per cohesive set
-    partition: Partition | None = None  # a distributed run's: the groups hold this rank's elements only
+    partition: RankPartition | None = None  # a distributed run's: the groups hold this rank's elements only
+    monitors: list[Monitor] = field(default_factory=list)  # [[monitors]] on the mesh's nodes
+    whole: Mesh | None = None  # the whole mesh (an MPI run: on rank 0 only; ``mesh`` is the rank's piece)
 
     @property
     def stages(self) -> list[Stage]:
@@ -77,6 +82,15 @@ class Built:
         if load is None:
             raise AttributeError("a [[stages]] case has no axial group")
         return self.mesh.dim * self.mesh.node_sets[load.axial] + 1
+
+    @property
+    def axial_count(self) -> int | None:
+        """The paper form's axial nodes in the whole mesh (None: a [[stages]] case)."""
+        load = self.case.loading
+        if load is None:
+            return None
+        whole = self.mesh.place
+        return whole.node_set_sizes[load.axial] if whole is not None else int(self.mesh.node_sets[load.axial].shape[0])
 
     @property
     def bulk(self) -> SolidGroup:
@@ -148,41 +162,49 @@ def resolve(case: Case, path: str = "<case>") -> Case:
 def build(case: Case, path: str = "<case>", distribution: Distribution | None = None) -> Built:
     """The model: mesh (split where cohesive surfaces go), bulk and surface groups, the loading program.
 
-    distribution: build one MPI rank's model, its groups holding the elements of its part only.
+    distribution: build one MPI rank's model on its piece of the mesh, its groups holding the
+    elements of its part only (rank 0 makes the whole mesh and every rank's share).
     """
-    case = resolve(case, path)
-    mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
-    owned, part = None, None
-    if distribution is not None:
-        part = distribution.split(mesh)
-        owned = part.cell_part == distribution.rank
+    share: Share | None = None
+    if distribution is None:
+        case = resolve(case, path)
+        mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
+    else:
+        share = distribution.share(lambda n, split: cut_shares(resolve(case, path), path, n, split))
+        case, mesh, set_cells = share.case, share.mesh, []
+    part = share.partition if share is not None else None
+    rank = distribution.rank if distribution is not None else 0
+    owned = part.cell_part == rank if part is not None else None
     try:
         bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None,
-                                 distribution.rank if distribution is not None else 0)
+                                 rank)
     except CaseError:
         raise
     except ValueError as err:
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives: list = []
     extra_part = []  # the owning rank of each rigid-plastic point's multipliers, set after set
-    for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
-        points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
-        total = points.n
-        if part is not None and distribution is not None:  # each point on the rank of its first interface cell
-            where = part.interface_part[cells[points.cell]]
-            points = points.subset(where == distribution.rank)
-            if section.form is CohesiveForm.rp:
-                extra_part.append(where)
-        groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback)
+    for k, section in enumerate(case.cohesive_sets):
+        junction = None
+        if share is None:
+            cells = set_cells[k]
+            points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+            total = points.n
+        else:  # the rank's points (on the rank of their first interface cell), from rank 0
+            mine = share.cohesive[k]
+            points, total, junction = mine.points, mine.total, mine.junction
+            if mine.owners is not None:
+                extra_part.append(mine.owners)
+        groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback, junction)
         for g in groups:
             if isinstance(g, CohesiveRP):
                 g.total_points = total  # the multipliers are numbered over the whole set, on every rank
         cohesives += groups
     extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
     held = [g for g in extras if isinstance(g, HeldEnrichment)]
-    if part is not None and distribution is not None and held:  # each node's q's on the rank of its dofs
+    if part is not None and held:  # each node's q's on the rank of its dofs
         owner = part.node_part[held[0].registry.nodes]
-        held[0].hold_only(np.flatnonzero(owner == distribution.rank))
+        held[0].hold_only(np.flatnonzero(owner == rank))
         extra_part.append(owner)
     if part is not None and extra_part:
         part = part.with_extras(np.concatenate(extra_part))
@@ -191,8 +213,11 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     else:
         model = distribution.make_model(mesh, bulks + cohesives + extras, part)
     thickness = (case.mesh.resolved().thickness or 1.0) if mesh.dim == 3 else 1.0
-    program = build_program(case, mesh, model, bulks, cohesives, thickness, path)
+    monitors = share.monitors if share is not None else resolve_monitors(case, mesh, path)
+    minus = [c.minus_group for c in share.cohesive] if share is not None else None
+    program = build_program(case, mesh, model, bulks, cohesives, thickness, path, monitors, minus)
     cut_given_cracks(case, bulks, mesh, path)  # after the state at t = 0 (build_program's in-situ stress)
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
-    return Built(case, mesh, model, program, thickness, bulks, cohesives, part)
+    return Built(case, mesh, model, program, thickness, bulks, cohesives, part, monitors,
+                 share.whole if share is not None else mesh)

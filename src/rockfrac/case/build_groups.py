@@ -85,8 +85,10 @@ def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[BulkSection,
     return out
 
 
-def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none") -> list:
-    """The CSE group of a cohesive set: EP, or RP with augmented multipliers.
+def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none",
+                    junction: np.ndarray | None = None) -> list:
+    """The CSE group of a cohesive set: EP, or RP with augmented multipliers (``junction``: which
+    points sit at a junction, found on the whole mesh; None: found on ``mesh``).
 
     RP at junctions (a node split into k >= 3 copies): the multipliers of the pairs around it are
     statically indeterminate (circulating forces); they are taken with the least circulation, see
@@ -106,9 +108,10 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     if section.form is CohesiveForm.ep:
         return [CohesiveEP(points, law, name=name, integration=section.integration,
                            viscosity=section.viscosity or 0.0)]
-    root = tied_nodes(mesh)
-    copies = np.bincount(root, minlength=mesh.n_nodes)
-    return [CohesiveRP(points, law, section.augmentation, junction=copies[root[points.minus]] >= 3, name=name)]
+    if junction is None:
+        root = tied_nodes(mesh)
+        junction = np.bincount(root, minlength=mesh.n_nodes)[root[points.minus]] >= 3
+    return [CohesiveRP(points, law, section.augmentation, junction=junction, name=name)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

@@ -209,10 +209,10 @@ def opening_measure(m: Monitor, dim: int, n_dofs: int, model: Model | None = Non
     (on a distributed ``model``, the gradient over each rank's owned dofs, the value summed)."""
     assert m.direction is not None
     grad = np.zeros(n_dofs)
-    for sign, ids in ((-1.0, m.nodes[0]), (1.0, m.nodes[1])):
+    for k, (sign, ids) in enumerate(((-1.0, m.nodes[0]), (1.0, m.nodes[1]))):
         for a in range(dim):
             dofs, _ = model.local_dofs(ids * dim + a) if model is not None else (ids * dim + a, None)
-            np.add.at(grad, dofs, sign * m.direction[a] / ids.shape[0])
+            np.add.at(grad, dofs, sign * m.direction[a] / m.count(k))
     if model is not None and model.distributed:
         part = model.owned(grad)
         return lambda u: (model.reduce_sum(float(part @ u)), part)
@@ -230,26 +230,47 @@ def _source(stage: StageSection, key: str, path: str) -> str:
     return f"{path}: {key} ({'; '.join(parts) or 'held loads'})"
 
 
+def _stage_sections(case: Case, mesh: Mesh, path: str) -> tuple[list[tuple[StageSection, str]], list[str]]:
+    """The loading program's stages (the [loading] form expanded) with their sources, and their keys."""
+    if case.loading is not None:
+        pairs = expand_loading(case, mesh, path)
+        return pairs, ["[loading]"] * len(pairs)
+    keys = [f"[stages {k + 1}]" for k in range(len(case.stage_sections))]
+    return [(st, _source(st, key, path)) for st, key in zip(case.stage_sections, keys)], keys
+
+
+def check_boundary_groups(case: Case, mesh: Mesh, path: str) -> None:
+    """The groups the loading program names, checked on the whole mesh (an MPI run's rank 0, before
+    it sends each rank its piece: a piece holds a group's nodes and sides in part): node groups of
+    prescribed displacements, boundary groups of loads, in-situ groups on the outer boundary."""
+    outer = outer_boundary(mesh)
+    pairs, keys = _stage_sections(case, mesh, path)
+    for (st, _), key in zip(pairs, keys):
+        require(list(st.displacement), mesh.node_sets, "node group", f"{key} displacement", path)
+        for group in st.pressure:
+            _sides(mesh, group, f"{key} pressure", path)
+        for group in st.traction:
+            _sides(mesh, group, f"{key} traction", path)
+        for group in st.in_situ if case.initial is not None and case.initial.stress else ():
+            _, count = match(outer, _sides(mesh, group, f"{key} in_situ", path))
+            if (count == 0).any():
+                raise CaseError(f"{path}: {key} in_situ.{group}: not on the outer boundary (a crack face?)")
+
+
 def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: list, thickness: float,
-                  path: str) -> Program:
-    """The engine stages of the case's loading program and its state at t = 0."""
+                  path: str, monitors: list[Monitor] | None = None,
+                  minus_groups: list[np.ndarray] | None = None) -> Program:
+    """The engine stages of the case's loading program and its state at t = 0 (``monitors``: found
+    on the whole mesh, None: on ``mesh``; ``minus_groups``: see :func:`set_initial_stress`)."""
     dim = mesh.dim
     surfaces = cohesives or [g for g in bulks if g.kind == "embedded"]
-    monitors = resolve_monitors(case, mesh, path)
+    if monitors is None:
+        monitors = resolve_monitors(case, mesh, path)
     if case.bulk is not None:
         densities = {b.region: case.bulk.density for b in bulks}
     else:
         densities = {m.region: m.density for m in case.materials or []}
-    if case.loading is not None:
-        pairs = expand_loading(case, mesh, path)
-        keys = ["[loading]"] * len(pairs)
-    else:
-        pairs = []
-        keys = []
-        for k, st in enumerate(case.stage_sections):
-            key = f"[stages {k + 1}]"
-            pairs.append((st, _source(st, key, path)))
-            keys.append(key)
+    pairs, keys = _stage_sections(case, mesh, path)
     # the state at t = 0
     notes = []
     initial = None
@@ -262,7 +283,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         if case.initial.stress:
             initial = InitialStress(case.initial.stress, [b.region for b in bulks], dim, path)
             try:
-                set_initial_stress(mesh, bulks, cohesives, initial, model)
+                set_initial_stress(mesh, bulks, cohesives, initial, model, minus_groups)
             except CaseError as err:
                 raise CaseError(f"{path}: {err}") from None
             model.update_constant_force()

@@ -18,7 +18,7 @@ from rockfrac.fem.loads import (
     side_normals,
 )
 from rockfrac.mesh.mesh import Mesh
-from rockfrac.mesh.topology import cell_sides, match
+from rockfrac.mesh.topology import side_cells
 from rockfrac.model import Model
 
 
@@ -72,15 +72,13 @@ def _cell_regions(n_cells: int, bulks: list) -> np.ndarray:
 
 def own_sides(mesh: Mesh, bulks: list, sides: np.ndarray) -> np.ndarray:
     """The boundary sides whose cell is one of the groups' (an MPI rank's own: each side on one rank)."""
-    return sides[_cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)] >= 0]
+    return sides[_side_regions(mesh, bulks, sides) >= 0]
 
 
-def _side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
-    """The cell each boundary side belongs to."""
-    all_sides = cell_sides(mesh.cells, mesh.dim)
-    row, _ = match(all_sides, sides)
-    per_cell = all_sides.shape[0] // mesh.cells.shape[0]
-    return row // per_cell
+def _side_regions(mesh: Mesh, bulks: list, sides: np.ndarray) -> np.ndarray:
+    """The group (index into ``bulks``) of each side's cell, -1 where none of the groups has it."""
+    cells = side_cells(mesh, sides)
+    return np.where(cells >= 0, _cell_regions(mesh.cells.shape[0], bulks)[cells], -1)
 
 
 def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.ndarray,
@@ -91,7 +89,7 @@ def in_situ_forces(mesh: Mesh, bulks: list, initial: InitialStress, sides: np.nd
     f = np.zeros(mesh.dim * mesh.n_nodes)
     if sides.size == 0:
         return f
-    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
+    region_of = _side_regions(mesh, bulks, sides)
     for k, g in enumerate(bulks):
         field_ = initial.field(g.region)
         on = region_of == k
@@ -114,7 +112,7 @@ def in_situ_tractions(mesh: Mesh, bulks: list, initial: InitialStress, sides: np
     on = np.asarray(factor) != 0.0
     sides, factor = sides[on], np.asarray(factor)[on]
     t = np.zeros((sides.shape[0], sides.shape[1], dim))
-    region_of = _cell_regions(mesh.cells.shape[0], bulks)[_side_cells(mesh, sides)]
+    region_of = _side_regions(mesh, bulks, sides)
     normal = side_normals(mesh.nodes, sides)
     pairs = [(0, 3), (3, 1)] if dim == 2 else [(0, 3, 5), (3, 1, 4), (5, 4, 2)]  # Voigt rows of sigma
     for k, g in enumerate(bulks):
@@ -129,20 +127,21 @@ def in_situ_tractions(mesh: Mesh, bulks: list, initial: InitialStress, sides: np
     return sides, t * factor[:, None, None]
 
 
-def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model) -> None:
+def set_initial_stress(mesh: Mesh, bulks: list, cohesives: list, initial: InitialStress, model: Model,
+                       minus_groups: list[np.ndarray] | None = None) -> None:
     """Put the in-situ stress into the groups: bulk regions their own field, cohesive sets the field
-    of the region on their minus side (the last bulk group whose cells hold their minus nodes; on
-    several MPI ranks, over the cells and points of every rank)."""
+    of the region on their minus side (the last bulk group whose cells hold their minus nodes, found
+    here, or given for each set's points: ``minus_groups``, an MPI rank's, found on the whole mesh;
+    over the points of every rank)."""
     node_group = np.full(mesh.n_nodes, -1)
     for k, g in enumerate(bulks):
         field_ = initial.field(g.region)
         if field_ is not None:
             g.set_initial_stress(field_)
         node_group[g.cells.ravel()] = k
-    if model.distributed:
-        node_group = model.reduce_max(node_group)
-    for c in cohesives:
-        groups = set().union(*model.allgather(set(node_group[c.points.minus].tolist())))
+    for j, c in enumerate(cohesives):
+        mine = minus_groups[j] if minus_groups is not None else node_group[c.points.minus]
+        groups = set().union(*model.allgather(set(mine.tolist())))
         fields = {bulks[k].region: initial.field(bulks[k].region) for k in groups if k >= 0}
         specs = {initial.of_region[r][0].tobytes() + initial.of_region[r][1].tobytes()
                  for r, fl in fields.items() if fl is not None}

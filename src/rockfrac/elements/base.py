@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rockfrac.fem.dofs import LocalNumbering
+from rockfrac.fem.dofs import Numbering
 from rockfrac.fem.loads import StressField
 
 #: A path-following measure g(u) and its gradient dg/du (dense, n_dofs).
@@ -88,7 +88,7 @@ class ElementGroup(ABC):
         on these dofs of its groups, fixed for the run."""
         return self.dofs.ravel()
 
-    def renumber(self, numbering: LocalNumbering) -> None:
+    def renumber(self, numbering: Numbering) -> None:
         """Put every dof the group holds into an MPI rank's local numbering (from the global one)."""
         self.dofs = numbering.local(self.dofs)
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from rockfrac.elements.ede_paths import Alone, Exchange
-from rockfrac.fem.dofs import LocalNumbering
+from rockfrac.fem.dofs import Numbering
 
 
 def side_key(nodes) -> tuple[int, ...]:
@@ -67,7 +67,7 @@ class EnrichmentRegistry:
         self.distributed = exchange is not None
         self.rank = rank
         self.offset = 0
-        self.numbering: LocalNumbering | None = None  # an MPI rank's local dofs (None: the global numbering)
+        self.numbering: Numbering | None = None  # an MPI rank's local dofs (None: the global numbering)
         self.enriched = np.zeros(self.nodes.size, dtype=bool)
         self.crack_of = np.full(self.nodes.size, -1)
         self.version = 0

@@ -2,12 +2,27 @@
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 
 def node_dofs(cells: np.ndarray, dim: int = 2) -> np.ndarray:
     """Displacement dofs (n_cells, dim * nodes_per_cell) of cells given by node indices, node by node."""
     return (dim * cells[:, :, None] + np.arange(dim)).reshape(cells.shape[0], cells.shape[1] * dim)
+
+
+class Numbering(Protocol):
+    """An MPI rank's map from the numbering its groups are built in to its local one, and back."""
+
+    @property
+    def n(self) -> int: ...
+
+    def local(self, dofs: np.ndarray) -> np.ndarray: ...
+
+    def local_part(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def global_(self, local: np.ndarray) -> np.ndarray: ...
 
 
 class LocalNumbering:
@@ -49,3 +64,48 @@ class LocalNumbering:
     def global_(self, local: np.ndarray) -> np.ndarray:
         """The global numbers of local dofs (any shape)."""
         return self.global_ids[np.asarray(local, dtype=np.int64)]
+
+
+def piece_to_global(dofs: np.ndarray, dim: int, node_ids: np.ndarray) -> np.ndarray:
+    """Global dofs of dofs numbered on a piece of the mesh (``node_ids``: the whole mesh's index of
+    each of its nodes): a node dof dim p + k is dim node_ids[p] + k, an extra dof stays."""
+    dofs = np.asarray(dofs, dtype=np.int64)
+    block, comp = np.divmod(dofs, dim)
+    node = block < node_ids.shape[0]
+    return np.where(node, dim * node_ids[np.where(node, block, 0)] + comp, dofs)
+
+
+class PieceNumbering:
+    """A rank's local numbering of dofs numbered on its piece of the mesh: the piece's node dofs (dim
+    times the piece's node index plus the component) and the extra dofs (their global numbers, from
+    dim times the whole mesh's node count). They go to global dofs through the whole mesh's index of
+    each of the piece's nodes, then to local ones through ``inner``; :meth:`global_` goes back to the
+    piece's numbering. On a piece that is the whole mesh, this is ``inner``."""
+
+    def __init__(self, inner: LocalNumbering, dim: int, node_ids: np.ndarray, n_nodes: int):
+        self.inner, self.dim, self.node_ids, self.n_nodes = inner, dim, np.asarray(node_ids, np.int64), n_nodes
+
+    @property
+    def n(self) -> int:
+        return self.inner.n
+
+    def to_global(self, dofs: np.ndarray) -> np.ndarray:
+        """Global dofs of the piece's dofs (any shape)."""
+        return piece_to_global(dofs, self.dim, self.node_ids)
+
+    def from_global(self, dofs: np.ndarray) -> np.ndarray:
+        """The piece's dofs of global ones (of its nodes, or extra)."""
+        dofs = np.asarray(dofs, dtype=np.int64)
+        block, comp = np.divmod(dofs, self.dim)
+        node = block < self.n_nodes
+        return np.where(node, self.dim * np.searchsorted(self.node_ids, np.where(node, block, 0)) + comp, dofs)
+
+    def local(self, dofs: np.ndarray) -> np.ndarray:
+        return self.inner.local(self.to_global(dofs))
+
+    def local_part(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.inner.local_part(self.to_global(dofs))
+
+    def global_(self, local: np.ndarray) -> np.ndarray:
+        """The piece's numbers of local dofs (any shape)."""
+        return self.from_global(self.inner.global_(local))

@@ -9,6 +9,25 @@ import numpy as np
 from rockfrac.mesh.geometry import CELL_TYPES, corner_jacobians
 
 
+@dataclass(frozen=True)
+class PlaceInWhole:
+    """Where a piece of a mesh sits in the whole one: the whole mesh's index of each of the piece's
+    nodes, cells and interface cells (each ascending), the whole mesh's counts, the sides of the
+    whole body's outer boundary that belong to the piece's cells (in the piece's node numbering: a
+    piece's own boundary also has the sides it shares with the other pieces), the size of each node
+    group in the whole mesh, and its bounding box ((2, dim): lowest and highest coordinates [m])."""
+
+    nodes: np.ndarray
+    cells: np.ndarray
+    interfaces: np.ndarray
+    n_nodes: int
+    n_cells: int
+    n_interfaces: int
+    outer: np.ndarray
+    node_set_sizes: dict[str, int]
+    bounds: np.ndarray
+
+
 @dataclass
 class Mesh:
     """A 2D or 3D mesh; nothing here assumes structure.
@@ -27,6 +46,8 @@ class Mesh:
     face_sets: named (k, 4) node arrays of 3D boundary quadrilaterals (hex8 meshes) or (k, 3)
         triangles (tet4 meshes), outward normal by the right-hand rule (pressure loads).
     regions: named cell index arrays (materials); by default one region "bulk" with every cell.
+    place: for one MPI rank's piece of a larger mesh (:class:`rockfrac.mesh.piece.Cutter`), where
+        the piece sits in it; None for a whole mesh.
     """
 
     nodes: np.ndarray
@@ -37,6 +58,7 @@ class Mesh:
     edge_sets: dict[str, np.ndarray] = field(default_factory=dict)
     face_sets: dict[str, np.ndarray] = field(default_factory=dict)
     regions: dict[str, np.ndarray] = field(default_factory=dict)
+    place: PlaceInWhole | None = None
 
     def __post_init__(self) -> None:
         self.nodes = np.ascontiguousarray(self.nodes, dtype=np.float64)
@@ -53,6 +75,13 @@ class Mesh:
     @property
     def n_nodes(self) -> int:
         return self.nodes.shape[0]
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, dim) the lowest and highest coordinates of the (whole) mesh [m]."""
+        if self.place is not None:
+            return self.place.bounds
+        return np.stack([self.nodes.min(axis=0), self.nodes.max(axis=0)])
 
     @property
     def quads(self) -> np.ndarray:

@@ -66,18 +66,6 @@ class Partition:
         new[order] = np.arange(order.shape[0])
         return (self.dim * new[:, None] + np.arange(self.dim)).ravel()
 
-    def numbering(self, part: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """From one sort of the blocks (a rank's set-up sorts once, not once per part): every dof's
-        renumbered index (:meth:`new_dofs`), each part's first renumbered dof (n_parts + 1,), and the
-        part's own dofs (:meth:`owned_dofs`)."""
-        order, starts = self._blocks()
-        new = np.empty_like(order)
-        new[order] = np.arange(order.shape[0])
-        blocks = order[starts[part]:starts[part + 1]]
-        comps = np.arange(self.dim)
-        return ((self.dim * new[:, None] + comps).ravel(), self.dim * starts,
-                (self.dim * blocks[:, None] + comps).ravel())
-
     def owned_range(self, part: int) -> tuple[int, int]:
         """The part's block of renumbered dofs [start, end)."""
         _, starts = self._blocks()
@@ -88,6 +76,94 @@ class Partition:
         order, starts = self._blocks()
         blocks = order[starts[part]:starts[part + 1]]
         return (self.dim * blocks[:, None] + np.arange(self.dim)).ravel()
+
+
+    def node_blocks(self) -> np.ndarray:
+        """Each node's place in its part's block of nodes (its renumbered index without extra dofs,
+        less its part's first)."""
+        place = np.empty_like(self.node_order)
+        place[self.node_order] = np.arange(self.node_order.shape[0]) - self.node_starts[self.node_part[self.node_order]]
+        return place
+
+    def of_piece(self, rank: int, cells: np.ndarray, interfaces: np.ndarray, nodes: np.ndarray) -> RankPartition:
+        """What rank ``rank`` needs of the partition for its piece of the mesh (the whole mesh's
+        indices of the piece's cells, interface cells and nodes, each ascending)."""
+        return RankPartition(self.n_parts, self.dim, rank, self.cell_part[cells], self.interface_part[interfaces],
+                             self.node_part[nodes], self.node_blocks()[nodes], np.diff(self.node_starts),
+                             np.asarray(nodes, dtype=np.int64), self.node_part.shape[0], self.extra_part)
+
+
+@dataclass(frozen=True)
+class RankPartition:
+    """One rank's share of a :class:`Partition`: the parts of its piece's cells, interface cells and
+    nodes, and what numbers their dofs in PETSc's order, nothing of the whole mesh's size.
+
+    node_ids: the whole mesh's index of each of the piece's nodes (ascending); node_block: each one's
+    place in its part's block of nodes; node_counts: (n_parts,) the nodes of each part; n_nodes: the
+    whole mesh's. Dofs are numbered as in the whole :class:`Partition` (the global numbering: node n's
+    component k is dim n + k, extra block e's is dim (n_nodes + e) + k), and renumbered alike.
+    """
+
+    n_parts: int
+    dim: int
+    rank: int
+    cell_part: np.ndarray
+    interface_part: np.ndarray
+    node_part: np.ndarray
+    node_block: np.ndarray
+    node_counts: np.ndarray
+    node_ids: np.ndarray
+    n_nodes: int
+    extra_part: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def n_dofs(self) -> int:
+        return self.dim * (self.n_nodes + self.extra_part.shape[0])
+
+    def with_extras(self, extra_part: np.ndarray) -> RankPartition:
+        """As :meth:`Partition.with_extras` (``extra_part``: every extra block's owner, the whole model's)."""
+        return replace(self, extra_part=np.asarray(extra_part, dtype=np.int64))
+
+    def numbering(self) -> tuple[np.ndarray, np.ndarray, PetscIndex]:
+        """Each part's first renumbered dof (n_parts + 1,), this rank's own dofs (global numbering,
+        in renumbered order) and the map of global dofs (of the piece's nodes and any extras) to
+        renumbered ones."""
+        extra_counts = np.bincount(self.extra_part, minlength=self.n_parts)
+        first = np.concatenate([[0], np.cumsum(self.node_counts + extra_counts)])
+        order = np.argsort(self.extra_part, kind="stable")  # extras by part, then by index
+        extra_block = np.empty_like(order)
+        extra_block[order] = np.arange(order.shape[0]) - np.concatenate([[0], np.cumsum(extra_counts)])[
+            self.extra_part[order]] + first[self.extra_part[order]] + self.node_counts[self.extra_part[order]]
+        node_block = first[self.node_part] + self.node_block
+        mine = np.flatnonzero(self.node_part == self.rank)
+        blocks = np.concatenate([self.node_ids[mine[np.argsort(self.node_block[mine])]],
+                                 self.n_nodes + np.flatnonzero(self.extra_part == self.rank)])
+        comps = np.arange(self.dim)
+        owned = (self.dim * blocks[:, None] + comps).ravel()
+        return self.dim * first, owned, PetscIndex(self.dim, self.node_ids, node_block, self.n_nodes, extra_block)
+
+
+@dataclass(frozen=True)
+class PetscIndex:
+    """The renumbered (PETSc) index of global dofs: of a piece's nodes and of the extra dofs."""
+
+    dim: int
+    node_ids: np.ndarray
+    node_block: np.ndarray
+    n_nodes: int
+    extra_block: np.ndarray
+
+    def __call__(self, dofs: np.ndarray) -> np.ndarray:
+        dofs = np.asarray(dofs, dtype=np.int64)
+        block, comp = np.divmod(dofs, self.dim)
+        node = block < self.n_nodes
+        at = np.searchsorted(self.node_ids, block[node])
+        if node.any() and (at.max() >= self.node_ids.shape[0] or np.any(self.node_ids[at] != block[node])):
+            raise ValueError("dofs of nodes outside this rank's piece of the mesh")
+        out = np.empty_like(block)
+        out[node] = self.node_block[at]
+        out[~node] = self.extra_block[block[~node] - self.n_nodes]
+        return self.dim * out + comp
 
 
 def element_graph(mesh: Mesh) -> sp.csr_matrix:

@@ -90,9 +90,20 @@ def on_boundary(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
     return count == 1
 
 
+def side_cells(mesh: Mesh, sides: np.ndarray) -> np.ndarray:
+    """The cell of each boundary side (-1 for a side of no cell)."""
+    all_sides = cell_sides(mesh.cells, mesh.dim)
+    row, _ = match(all_sides, np.asarray(sides, dtype=np.int64))
+    per_cell = all_sides.shape[0] // max(mesh.cells.shape[0], 1)
+    return np.where(row >= 0, row // per_cell, -1)
+
+
 def outer_boundary(mesh: Mesh) -> np.ndarray:
     """The boundary sides of the body without the faces of its cohesive cracks: (k, 2) edges
-    counter-clockwise (2D) or (k, 4) outward faces (3D). In-situ tractions act here."""
+    counter-clockwise (2D) or (k, 4) outward faces (3D). In-situ tractions act here. Of a rank's
+    piece of a mesh: the whole body's sides on the piece's cells."""
+    if mesh.place is not None:
+        return mesh.place.outer
     sides = boundary_edges(mesh) if mesh.dim == 2 else boundary_faces(mesh)
     if not mesh.interfaces.size:
         return sides

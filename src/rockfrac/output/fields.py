@@ -94,13 +94,15 @@ def _to_owners(built, sums: dict[str, np.ndarray], count: np.ndarray, state: np.
     added there: each rank ends with its own cells' sums over every rank's points (the partition's
     surface is all that travels)."""
     owner, rank = built.partition.interface_part, built.model.rank
+    whole = built.mesh.place.interfaces if built.mesh.place is not None else np.arange(owner.shape[0])
     touched = np.flatnonzero((count > 0) & (owner != rank))
     parts: list = []
-    for r in range(built.partition.n_parts):
+    for r in range(built.partition.n_parts):  # each cell named by its index in the whole mesh
         ids = touched[owner[touched] == r]
-        parts.append((ids, {k: v[ids] for k, v in sums.items()}, count[ids], state[ids],
+        parts.append((whole[ids], {k: v[ids] for k, v in sums.items()}, count[ids], state[ids],
                       {k: w[ids] for k, w in written.items()}) if ids.size else None)
-    others = built.model.exchange(parts)
+    others = [None if got is None else (np.searchsorted(whole, got[0]),) + got[1:]
+              for got in built.model.exchange(parts)]
     mine = owner == rank
     for v in (*sums.values(), count, *written.values()):  # this rank's own cells' sums stay
         v[~mine] = 0
@@ -196,6 +198,8 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     gathered (the cracked cells only), to number them in the serial order."""
     mesh, model = built.mesh, built.model
     part, rank = built.partition, model.rank
+    place = mesh.place  # where the rank's piece of the mesh sits in the whole
+    assert place is not None
     own = np.flatnonzero(part.cell_part == rank)
     own_if = np.flatnonzero(part.interface_part == rank)
     interfaces = mesh.interfaces[own_if]
@@ -211,7 +215,7 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     tri = np.flatnonzero(part.cell_part[tri_hosts] == rank) if tri_hosts is not None else np.zeros(0, np.int64)
     bulk = _bulk_fields(built, u, own)
     inter = ({name: v[own_if] for name, v in _interface_fields(built, u, whole=False).items()}
-             if mesh.interfaces.size else None)
+             if place.n_interfaces else None)  # alike on every rank (a collective call)
     corners = (3 * tri[:, None] + np.arange(3)).ravel()
     piece = step_fields(
         mesh.nodes[nodes], row(mesh.cells[own]), mesh.cell_type,
@@ -224,15 +228,15 @@ def step_piece(built, u: np.ndarray) -> StepFields:
         triangle_data={k: v[tri] for k, v in tri_data.items()} or None,
         triangle_point_data={k: v[corners] for k, v in tri_points.items()} or None)
     n_seg = 0 if seg_hosts is None else seg_hosts.shape[0]
-    node_id = np.concatenate([nodes, mesh.n_nodes + (2 * seg[:, None] + np.arange(2)).ravel(),
-                              mesh.n_nodes + 2 * n_seg + corners]).astype(np.int64)
-    ids = {CellKind.BULK: own, CellKind.INTERFACE: own_if, "line": seg, "triangle": tri}
+    node_id = np.concatenate([place.nodes[nodes], place.n_nodes + (2 * seg[:, None] + np.arange(2)).ravel(),
+                              place.n_nodes + 2 * n_seg + corners]).astype(np.int64)
+    ids = {CellKind.BULK: place.cells[own], CellKind.INTERFACE: place.interfaces[own_if], "line": seg, "triangle": tri}
     kinds: list = []  # each block's kind; embedded cells are segments ("line") or triangles
     for (meshio_type, _), k in zip(piece.cells, piece.cell_data["cell_kind"]):
         kind = CellKind(int(k[0])) if k.size else CellKind.BULK  # only the bulk block may be empty
         kinds.append(kind if kind is not CellKind.EMBEDDED else "line" if meshio_type == "line" else "triangle")
     whole = {CellKind.BULK: bulk, CellKind.INTERFACE: inter or {}, "line": seg_data, "triangle": tri_data}
-    present = [CellKind.BULK] + ([CellKind.INTERFACE] if mesh.interfaces.size else []) + \
+    present = [CellKind.BULK] + ([CellKind.INTERFACE] if place.n_interfaces else []) + \
         (["line"] if n_seg else []) + (["triangle"] if tri_hosts is not None and tri_hosts.size else [])
     return _as_in_the_whole_grid(piece, kinds, [ids[k] for k in kinds], node_id,
                                  [whole[k] for k in present])

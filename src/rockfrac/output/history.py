@@ -26,7 +26,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -59,6 +59,21 @@ class Monitor:
     nodes: tuple[np.ndarray, ...]
     direction: np.ndarray | None
     note: str  # what run.log says about it (which nodes)
+    counts: tuple[int, ...] | None = None  # the nodes of each side in the whole mesh (None: as many as nodes)
+
+    def count(self, k: int) -> int:
+        """How many nodes side k has in the whole mesh (its mean's denominator)."""
+        return self.counts[k] if self.counts is not None else int(np.asarray(self.nodes[k]).shape[0])
+
+    def on_piece(self, ids: np.ndarray) -> Monitor:
+        """The monitor on a rank's piece of the mesh (``ids``: the whole index of each of its nodes,
+        ascending): the nodes it has, in its numbering; the whole mesh's counts kept."""
+        def local(nodes: np.ndarray) -> np.ndarray:
+            at = np.minimum(np.searchsorted(ids, nodes), ids.shape[0] - 1)
+            return at[ids[at] == nodes]
+
+        counts = tuple(self.count(k) for k in range(len(self.nodes)))
+        return replace(self, nodes=tuple(local(np.asarray(n)) for n in self.nodes), counts=counts)
 
 
 def axial_columns(u: np.ndarray, f_int: np.ndarray, axial_dofs: np.ndarray, thickness: float) -> dict:
@@ -117,22 +132,31 @@ class History:
     """
 
     def __init__(self, mesh: Mesh, model: Model, *, thickness: float, u0: np.ndarray, f0: np.ndarray,
-                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None, means: tuple[str, ...] = (),
-                 separated_fraction: float = SEPARATED):
+                 monitors: list[Monitor], axial_dofs: np.ndarray | None = None, axial_count: int | None = None,
+                 means: tuple[str, ...] = (), separated_fraction: float = SEPARATED, whole: Mesh | None = None):
         """means: point records averaged into columns besides MEANS (a traction law's own);
-        separated_fraction: the tensile strength left, relative, below which a cohesive point lets go."""
+        separated_fraction: the tensile strength left, relative, below which a cohesive point lets go;
+        axial_count: the axial group's nodes in the whole mesh (None: those of ``axial_dofs``). On an
+        MPI rank ``mesh`` is the rank's piece of the mesh, and ``whole`` the whole mesh on the rank
+        that counts the fragments (rank 0; None elsewhere)."""
+        self.axial_count = axial_count
         self.means = MEANS + tuple(m for m in means if m not in MEANS)
         self.mesh, self.model, self.thickness, self.axial_dofs = mesh, model, thickness, axial_dofs
         self.dim = mesh.dim
         self.n_u = model.n_u  # the displacement dofs of the model's vectors (an MPI rank's local ones)
-        self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if len(ids)}
+        # the node groups (of the whole mesh: a rank's piece holds some of their nodes) and their sizes
+        self.sizes = mesh.place.node_set_sizes if mesh.place is not None else {n: len(v) for n, v in mesh.node_sets.items()}
+        self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if self.sizes[name]}
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
         extra = [m for m in self.means if m not in CRACK]
         self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
         self.viscous = model.reduce_any(any(g.viscous_energy() is not None for g in model.groups))
         self.surfaces = [g for g in model.groups if isinstance(g, (CohesiveEP, CohesiveRP))]
-        self.fragments = Fragments(mesh) if mesh.interfaces.shape[0] else None
+        n_if = mesh.place.n_interfaces if mesh.place is not None else mesh.interfaces.shape[0]
+        self.counts_fragments = n_if > 0
+        self.fragments = Fragments(whole if whole is not None else mesh) if n_if and (
+            mesh.place is None or whole is not None) else None
         self.pieces: Pieces | None = None  # the fragments at the last row
         self.separated_fraction = separated_fraction
         # a model whose cracks cut cells as they grow (nodal embedded cracks): each cut changes the
@@ -178,21 +202,22 @@ class History:
         values are the sums of the ranks' products (one reduction per row)."""
         d, on_u, on_f, on_r = self.dim, [], [], []
         if self.axial_dofs is not None:
-            n = len(self.axial_dofs)
+            n = self.axial_count if self.axial_count is not None else len(self.axial_dofs)
             on_u.append(("u_axial", self.axial_dofs, np.full(n, -1.0 / n)))
             on_f.append(("F_axial", self.axial_dofs, np.full(n, -1.0 / self.thickness)))
         for g, ids in self.groups.items():
             for a in range(d):
-                on_u.append((f"u_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / ids.size)))
+                on_u.append((f"u_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / self.sizes[g])))
                 on_r.append((f"R_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / self.thickness)))
         for m in self.monitors:
             if m.direction is None:
-                on_u += [(col, np.array([d * m.nodes[0][0] + a]), np.ones(1)) for a, col in enumerate(m.columns)]
+                on_u += [(col, d * np.asarray(m.nodes[0][:1]) + a, np.ones(len(m.nodes[0][:1])))
+                         for a, col in enumerate(m.columns)]
                 continue
             a_, b_ = np.asarray(m.nodes[0]), np.asarray(m.nodes[1])
             dofs = np.concatenate([d * b_[:, None] + np.arange(d), d * a_[:, None] + np.arange(d)]).ravel()
-            weights = np.concatenate([np.tile(m.direction / b_.size, (b_.size, 1)),
-                                      np.tile(-m.direction / a_.size, (a_.size, 1))]).ravel()
+            weights = np.concatenate([np.tile(m.direction / m.count(1), (b_.size, 1)),
+                                      np.tile(-m.direction / m.count(0), (a_.size, 1))]).ravel()
             on_u.append((m.name, dofs, weights))
         own = self.model.owned(np.ones(self.model.n_dofs))[: self.n_u]
 
@@ -232,11 +257,15 @@ class History:
         """Every column of the step (committed state)."""
         row = step_columns(info)
         row.update(crack_columns(self.model.groups, rec, self.means, self.model))
-        if self.fragments is not None:
+        if self.counts_fragments:
             mine = [g.separated(self.separated_fraction) for g in self.surfaces]
             pairs = np.concatenate([p for p, _ in mine] + [np.zeros((0, 2), dtype=np.int64)])
-            self.pieces = self.fragments.pieces(np.concatenate(self.model.allgather(pairs)))
-            row["n_fragments"] = self.pieces.count
+            if self.mesh.place is not None:  # the whole mesh's node numbers
+                pairs = self.mesh.place.nodes[pairs]
+            every = np.concatenate(self.model.allgather(pairs))
+            if self.fragments is not None:
+                self.pieces = self.fragments.pieces(every)
+            row["n_fragments"] = self.model.share(self.pieces.count if self.pieces is not None else 0)
             row["separated"] = self.model.reduce_sum(sum(a for _, a in mine)) / self.thickness
         row["time"] = info.stage_index + info.load_factor
         f_ext = info.f_ext if info.f_ext is not None else np.zeros_like(info.f_int)

@@ -92,9 +92,10 @@ def deformed_polylines(built, u: np.ndarray, mag: float) -> dict[str, list[np.nd
     return out
 
 
-def magnification(built, u: np.ndarray, fraction: float = 0.12) -> float:
-    """A round magnification that makes the largest displacement about ``fraction`` of the size."""
-    _, nodes, disp = section(built.mesh, u)
+def magnification(built, u: np.ndarray, fraction: float = 0.12, mesh=None) -> float:
+    """A round magnification that makes the largest displacement about ``fraction`` of the size (u
+    on ``mesh``, by default the built mesh)."""
+    _, nodes, disp = section(mesh if mesh is not None else built.mesh, u)
     size = np.ptp(nodes, axis=0).max()
     umax = np.abs(disp).max()
     ede = built.embedded

@@ -142,6 +142,42 @@ _VTK_TYPES = {"f8": "Float64", "f4": "Float32", "i1": "Int8", "i2": "Int16", "i4
               "u1": "UInt8", "u2": "UInt16", "u4": "UInt32", "u8": "UInt64"}
 
 
+def join_pieces(pieces: Sequence[StepFields]) -> StepFields:
+    """The whole grid of the pieces of a step (the inverse of :func:`piece_of`): each point and
+    cell put at its ``node_id`` and ``cell_id``; the blocks by meshio type and ``cell_kind``, in the
+    order of the kinds."""
+    n = 1 + max(int(p.point_data["node_id"].max(initial=-1)) for p in pieces)
+    points = np.zeros((n, 3))
+    point_data: dict[str, np.ndarray] = {}
+    blocks: dict[tuple[int, str], list[tuple[StepFields, int]]] = {}
+    for p in pieces:
+        ids = p.point_data["node_id"]
+        points[ids] = p.points
+        for name, arr in p.point_data.items():
+            if name != "node_id":
+                point_data.setdefault(name, np.zeros((n, *arr.shape[1:]), dtype=arr.dtype))[ids] = arr
+        for b, (kind, _) in enumerate(p.cells):
+            blocks.setdefault((int(p.cell_data["cell_kind"][b][0]), kind), []).append((p, b))
+    cells: list[tuple[str, np.ndarray]] = []
+    cell_data: dict[str, list[np.ndarray]] = {}
+    names = [name for name in pieces[0].cell_data if name != "cell_id"]
+    for (_, kind), parts in sorted(blocks.items()):
+        size = 1 + max(int(p.cell_data["cell_id"][b].max()) for p, b in parts)
+        width = parts[0][0].cells[parts[0][1]][1].shape[1]
+        conn = np.zeros((size, width), dtype=np.int64)
+        data = {name: np.zeros((size, *parts[0][0].cell_data[name][parts[0][1]].shape[1:]),
+                               dtype=parts[0][0].cell_data[name][parts[0][1]].dtype) for name in names}
+        for p, b in parts:
+            at = p.cell_data["cell_id"][b]
+            conn[at] = p.point_data["node_id"][p.cells[b][1]]
+            for name in names:
+                data[name][at] = p.cell_data[name][b]
+        cells.append((kind, conn))
+        for name in names:
+            cell_data.setdefault(name, []).append(data[name])
+    return StepFields(points, cells, point_data, cell_data)
+
+
 def _vtk_array(name: str, arr: np.ndarray) -> str:
     kind = _VTK_TYPES[np.dtype(arr.dtype).str.lstrip("<>|=")]
     comps = int(np.prod(arr.shape[1:])) if arr.ndim > 1 else 1

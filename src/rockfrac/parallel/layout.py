@@ -6,7 +6,8 @@ owned dofs and the ghosts around them), numbered 0 .. n_local - 1: the displacem
 the extra dofs (multipliers, enrichments), each part in PETSc order. The groups are renumbered
 into that numbering (:class:`rockfrac.fem.dofs.LocalNumbering`), so no vector of a rank has the
 whole model's length. PETSc's vectors and matrix rows are in the partition's numbering (each rank a
-contiguous block, :class:`rockfrac.mesh.partition.Partition`). ``to_vec`` copies the owned entries
+contiguous block, :class:`rockfrac.mesh.partition.Partition`; a rank knows the PETSc index of its
+piece's dofs only, :class:`rockfrac.mesh.partition.RankPartition`). ``to_vec`` copies the owned entries
 into a PETSc vector; ``from_vec`` fills the local entries from one (owned and ghosts, a scatter);
 ``sum_local`` adds the ranks' contributions of their elements and returns the sums on the local
 entries (the internal forces). The rank's matrix rows (its sparsity pattern) are its local dofs in
@@ -18,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from rockfrac.fem.dofs import LocalNumbering
-from rockfrac.mesh.partition import Partition
+from rockfrac.mesh.partition import RankPartition
 
 
 def petsc():
@@ -30,26 +31,27 @@ def petsc():
 class Layout:
     """One rank's dofs on the partition: owned (a contiguous PETSc block) and local (owned + ghosts)."""
 
-    def __init__(self, comm, partition: Partition, rank: int, reach: np.ndarray, nodes: np.ndarray):
+    def __init__(self, comm, partition: RankPartition, reach: np.ndarray, nodes: np.ndarray):
         """reach: the global dofs this rank's elements touch or may touch (any order, repeats allowed);
-        nodes: the mesh's coordinates (the owned ones are kept: the AMG's rigid-body modes)."""
+        nodes: the coordinates of the rank's piece of the mesh (the owned ones are kept: the AMG's
+        rigid-body modes)."""
         PETSc = petsc()
-        self.comm, self.rank, self.size = comm, rank, comm.Get_size()
+        self.comm, self.rank, self.size = comm, partition.rank, comm.Get_size()
         self.n = partition.n_dofs
-        # global (rockfrac) dof -> PETSc index; each rank's first PETSc row; the owned global dofs in
-        # PETSc order
-        self.new, self.starts, self.owned = partition.numbering(rank)
-        self.lo, self.hi = int(self.starts[rank]), int(self.starts[rank + 1])
-        self.n_displacement = nodes.size  # rockfrac numbers the displacements first, then multipliers
+        # each rank's first PETSc row; the owned global dofs in PETSc order; global dof -> PETSc index
+        self.starts, self.owned, self.petsc_of = partition.numbering()
+        self.lo, self.hi = int(self.starts[self.rank]), int(self.starts[self.rank + 1])
+        self.n_displacement = partition.dim * partition.n_nodes  # displacements first, then multipliers
         reach = np.unique(np.asarray(reach, dtype=np.int64))
-        order = np.lexsort((self.new[reach], reach >= self.n_displacement))  # displacements first
+        reach_petsc = self.petsc_of(reach)
+        order = np.lexsort((reach_petsc, reach >= self.n_displacement))  # displacements first
         self.local = reach[order]  # the global dof of each local one
         self.n_local_u = int(np.count_nonzero(reach < self.n_displacement))
-        self.local_petsc = self.new[self.local].astype(PETSc.IntType)
+        self.local_petsc = reach_petsc[order].astype(PETSc.IntType)
         self.numbering = LocalNumbering(self.local)
         self.owned_local, held = self.numbering.local_part(self.owned)  # their local numbers, PETSc order
         if not held.all():  # an owned dof no element of the rank touches: not a partition of this mesh
-            raise ValueError(f"rank {rank} owns dofs {self.owned[~held][:5].tolist()} that none of its elements "
+            raise ValueError(f"rank {self.rank} owns dofs {self.owned[~held][:5].tolist()} that none of its elements "
                              "touches")
         self.owned_mask = np.zeros(self.local.shape[0], dtype=np.bool_)
         self.owned_mask[self.owned_local] = True
@@ -58,7 +60,8 @@ class Layout:
         self.row_of[self.rows] = np.arange(self.rows.shape[0])
         self.rows_petsc = self.local_petsc[self.rows]  # each matrix row's PETSc index (ascending)
         blocks = self.owned[::partition.dim] // partition.dim
-        self.coordinates = nodes[blocks[blocks < nodes.shape[0]]]  # owned nodes (not multipliers), PETSc order
+        # the owned nodes (not multipliers), PETSc order
+        self.coordinates = nodes[np.searchsorted(partition.node_ids, blocks[blocks < partition.n_nodes])]
         self.lgmap = PETSc.LGMap().create(self.rows_petsc, comm=comm)
         self._vec = PETSc.Vec().createMPI((self.hi - self.lo, self.n), comm=comm)
         self._seq = PETSc.Vec().createSeq(self.local.shape[0], comm=PETSc.COMM_SELF)
@@ -128,13 +131,13 @@ class Layout:
         return u, lam
 
     def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
-        """A local vector x at any global dofs, each from its owner: one scatter of those entries only
-        (a collective call; x is read on the owned entries)."""
+        """A local vector x at global dofs (of the rank's piece of the mesh), each from its owner: one
+        scatter of those entries only (a collective call; x is read on the owned entries)."""
         PETSc = petsc()
         dofs = np.asarray(dofs, dtype=np.int64)
         v = self.to_vec(x)
         seq = PETSc.Vec().createSeq(dofs.shape[0], comm=PETSc.COMM_SELF)
-        index = PETSc.IS().createGeneral(self.new[dofs].astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        index = PETSc.IS().createGeneral(self.petsc_of(dofs).astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         scatter = PETSc.Scatter().create(v, index, seq, None)
         scatter.scatter(v, seq, addv=PETSc.InsertMode.INSERT_VALUES, mode=PETSc.ScatterMode.FORWARD)
         out = seq.getArray().copy()

@@ -1,10 +1,12 @@
 """One MPI rank's model: its elements' groups, assembled into PETSc's distributed matrix and vectors.
 
-Every rank builds the same split mesh and its partition (:mod:`rockfrac.mesh.partition`), and groups
-holding only its own cells and interface cells, whose state stays on the rank. The extra dofs are
-numbered alike on every rank (the global numbering); then the groups are renumbered into the rank's
-local numbering (:class:`rockfrac.parallel.layout.Layout`), in which all its vectors are: none has
-the whole model's length. ``assemble`` runs the groups as the serial model does, then:
+Every rank builds its groups on its piece of the split mesh (:mod:`rockfrac.case.shares`), holding
+only its own cells and interface cells, whose state stays on the rank, and knows of the partition
+(:mod:`rockfrac.mesh.partition`) only its piece's share. The extra dofs are numbered alike on every
+rank (the global numbering); then the groups, built on the piece's node numbers, are renumbered into
+the rank's local numbering (:class:`rockfrac.parallel.layout.Layout`,
+:class:`rockfrac.fem.dofs.PieceNumbering`), in which all its vectors are: none has the whole
+model's length. ``assemble`` runs the groups as the serial model does, then:
 
 - the internal forces are summed over the ranks in a PETSc vector (each rank adds its elements'
   contributions, owned or not) and brought back to the local entries;
@@ -30,7 +32,8 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from rockfrac.mesh.partition import Partition
+from rockfrac.fem.dofs import PieceNumbering, piece_to_global
+from rockfrac.mesh.partition import RankPartition
 from rockfrac.model import Assembled, Model, serial_dot
 from rockfrac.parallel.layout import Layout, petsc
 
@@ -57,9 +60,9 @@ class DistributedModel(Model):
     """The groups of one rank's elements on the partition's dofs (see the module note)."""
 
     comm: Any = None  # the mpi4py communicator of the run
-    partition: Partition | None = None
+    partition: RankPartition | None = None  # this rank's share of the partition (its piece's)
     rank: int = 0
-    nodes: np.ndarray | None = None  # the mesh's coordinates [m]
+    nodes: np.ndarray | None = None  # the coordinates of the rank's piece of the mesh [m]
     layout: Layout = field(init=False, repr=False)
     distributed = True
 
@@ -69,19 +72,22 @@ class DistributedModel(Model):
         self._matrix = self._preallocated()
 
     def _number(self) -> int:
-        """Number every rank's extra dofs alike (global numbering), then put the groups into this
-        rank's local numbering: its vectors have its local dofs only."""
-        assert self.partition is not None and self.nodes is not None
+        """Number every rank's extra dofs alike (global numbering), then put the groups, numbered on
+        the rank's piece of the mesh, into its local numbering: its vectors have its local dofs only."""
+        part = self.partition
+        assert part is not None and self.nodes is not None
         n = self.number_extras()  # the multipliers numbered over every rank's points
-        if n != self.partition.n_dofs:
-            raise ValueError(f"the partition has {self.partition.n_dofs} dofs, the model {n}: its extra dofs "
+        if n != part.n_dofs:
+            raise ValueError(f"the partition has {part.n_dofs} dofs, the model {n}: its extra dofs "
                              "(rigid-plastic multipliers, nodal cracks' enrichments) are not partitioned")
-        reach = [g.reach() for g in self.groups]
-        self.layout = Layout(self.comm, self.partition, self.rank,
-                             np.concatenate(reach + [np.zeros(0, dtype=np.int64)]), self.nodes)
+        reach = [piece_to_global(g.reach(), self.dim, part.node_ids) for g in self.groups]
+        self.layout = Layout(self.comm, part, np.concatenate(reach + [np.zeros(0, dtype=np.int64)]), self.nodes)
+        self.piece = PieceNumbering(self.layout.numbering, self.dim, part.node_ids, part.n_nodes)
         for g in self.groups:
-            g.renumber(self.layout.numbering)
+            g.renumber(self.piece)
         local = self.layout.local
+        u = local[:self.layout.n_local_u]  # the local displacement dofs, whole mesh's numbering
+        self._piece_u = self.piece.from_global(u)  # their dofs on the piece of the mesh
         self._row = self.layout.row_of.astype(np.int32 if local.shape[0] < 2**31 else np.int64)
         return int(local.shape[0])
 
@@ -94,16 +100,17 @@ class DistributedModel(Model):
         return self.layout.n
 
     def local_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.layout.numbering.local_part(dofs)
+        return self.piece.local_part(dofs)
 
     def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
         return self.layout.numbering.global_(dofs)
 
     def localized(self, f: np.ndarray) -> np.ndarray:
-        glob = self.layout.local
-        inside = glob < f.shape[0]
+        """f over the displacement dofs of the rank's piece of the mesh, on the local dofs."""
+        at = self._piece_u
+        inside = at < f.shape[0]
         out = np.zeros(self.n_dofs)
-        out[inside] = f[glob[inside]]
+        out[:at.shape[0]][inside] = f[at[inside]]
         return out
 
     def summed(self, f: np.ndarray) -> np.ndarray:
@@ -272,7 +279,10 @@ class DistributedModel(Model):
         return self.comm.allgather(value)
 
     def values_at(self, x: np.ndarray, dofs: np.ndarray) -> np.ndarray:
-        return self.layout.values_at(x, dofs)
+        return self.layout.values_at(x, self.piece.to_global(dofs))
+
+    def gather_lead(self, value: Any) -> list[Any] | None:
+        return self.comm.gather(value, root=0)
 
     def exchange(self, parts: list[Any]) -> list[Any]:
         return self.comm.alltoall(parts)

@@ -1,8 +1,9 @@
 """Run a case on the ranks of an MPI communicator: the same stepping, Newton and path following as a
 serial run, on a distributed model (:mod:`rockfrac.parallel.model`).
 
-Rank 0 partitions the split mesh (METIS) and sends the partition to the others; every rank builds
-its own groups and takes every step with the others (each collective call in the same order).
+Rank 0 makes the split mesh, partitions it (METIS) and sends every rank its piece of it
+(:mod:`rockfrac.case.shares`); every rank builds its own groups on its piece and takes every step
+with the others (each collective call in the same order).
 The converged steps come to ``on_step`` on every rank with the displacements and internal forces
 on the rank's local dofs; :meth:`Layout.gather` assembles a whole vector.
 """
@@ -15,11 +16,13 @@ from pathlib import Path
 import numpy as np
 
 from rockfrac.case.build import Built, Distribution, build
+from rockfrac.case.shares import Share
 from rockfrac.case.schema import Case, load_case
 from rockfrac.elements.base import ElementGroup
+from rockfrac.errors import CaseError
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.mesh.mesh import Mesh
-from rockfrac.mesh.partition import Partition, partition
+from rockfrac.mesh.partition import Partition, RankPartition, partition
 from rockfrac.parallel.model import DistributedModel
 from rockfrac.parallel.solvers import distributed_solver
 from rockfrac.runner import engine_options
@@ -27,24 +30,32 @@ from rockfrac.solve.stepping import RunResult, StepInfo, run_stages
 
 
 def distribution(comm) -> Distribution:
-    """How ``comm``'s ranks share a case: rank 0's METIS partition, one part per rank."""
-    rank = comm.Get_rank()
+    """How ``comm``'s ranks share a case: rank 0 makes the whole split mesh, partitions it (METIS, one
+    part per rank) and sends each rank its share (its piece of the mesh); an input error found
+    there is raised on every rank."""
+    rank, size = comm.Get_rank(), comm.Get_size()
 
     def split(mesh: Mesh) -> Partition:
-        try:
-            part = partition(mesh, comm.Get_size()) if rank == 0 else None
-        except ValueError as err:
-            part = err  # type: ignore[assignment]  # every rank raises it, none waits for the others
-        part = comm.bcast(part, root=0)
-        if isinstance(part, ValueError):
-            raise part
-        return part
+        return partition(mesh, size)
 
-    def make_model(mesh: Mesh, groups: list[ElementGroup], part: Partition) -> DistributedModel:
-        return DistributedModel(mesh.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,
+    def share(make) -> Share:
+        whole, shares = None, None
+        if rank == 0:
+            try:
+                whole, shares = make(size, split)
+            except (CaseError, ValueError) as err:
+                shares = [err] * size  # every rank raises it, none waits for the others
+        mine = comm.scatter(shares, root=0)
+        if isinstance(mine, (CaseError, ValueError)):
+            raise mine
+        mine.whole = whole
+        return mine
+
+    def make_model(mesh: Mesh, groups: list[ElementGroup], part: RankPartition) -> DistributedModel:
+        return DistributedModel(part.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,
                                 partition=part, rank=rank, nodes=mesh.nodes)
 
-    return Distribution(split, rank, make_model, distributed_solver, comm)
+    return Distribution(share, rank, make_model, distributed_solver, comm)
 
 
 def build_distributed(case: Case | str | Path, comm, path_label: str | None = None) -> Built:

@@ -1,0 +1,100 @@
+"""Rank 0's part of an MPI run's set-up: the whole mesh made, split where cohesive surfaces go and
+partitioned once, the inputs that name its groups checked on it, and each rank's :class:`Share`
+cut from it: the rank's piece of the mesh (:mod:`rockfrac.mesh.piece`), its share of the
+partition, its cohesive points and its monitors on the piece's nodes.
+
+A rank's piece is its own cells and interface cells, and the interface cells its cohesive points
+lie on (a point's weight and normal come from every cell of its node pair). A case with embedded
+cracks gives every rank the whole mesh: their paths are tracked over every rank's cells.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from rockfrac.case.build_groups import material_cells
+from rockfrac.case.build_mesh import insert_cohesive, make_mesh
+from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
+from rockfrac.case.cohesive_section import CohesiveForm
+from rockfrac.case.schema import Case
+from rockfrac.elements.interface_points import InterfacePoints, interface_points, interface_points_3d
+from rockfrac.mesh.interfaces import tied_nodes
+from rockfrac.mesh.mesh import Mesh
+from rockfrac.mesh.partition import Partition, RankPartition
+from rockfrac.mesh.piece import Cutter
+from rockfrac.output.history import Monitor
+
+
+@dataclass
+class CohesiveShare:
+    """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
+    group on each point's minus side (its in-situ stress), and for a rigid-plastic set the rank of
+    every point of the set (its multipliers' owner) and which of the rank's points sit at a junction
+    (a node split into three copies or more, in the whole mesh)."""
+
+    points: InterfacePoints
+    total: int
+    minus_group: np.ndarray  # the bulk group (material) of the cells round each point's minus node, the last
+    owners: np.ndarray | None = None
+    junction: np.ndarray | None = None
+
+
+@dataclass
+class Share:
+    """What rank 0 sends a rank: the case (its defaults resolved on the whole mesh), the rank's piece
+    of the split mesh and share of the partition, its points of each cohesive set and its monitors
+    on the piece. ``whole``: the whole split mesh, on rank 0 only (never sent)."""
+
+    case: Case
+    mesh: Mesh
+    partition: RankPartition
+    cohesive: list[CohesiveShare]
+    monitors: list[Monitor]
+    whole: Mesh | None = None
+
+
+def _on_piece(points: InterfacePoints, ids: np.ndarray) -> InterfacePoints:
+    """Points with their nodes in a piece's numbering (``ids``: the whole index of each piece node)."""
+    return replace(points, minus=np.searchsorted(ids, points.minus), plus=np.searchsorted(ids, points.plus),
+                   segments=np.searchsorted(ids, points.segments))
+
+
+def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, list[Share]]:
+    """The whole split mesh and every rank's share (``case`` resolved; ``split(mesh)``: the partition)."""
+    mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
+    part: Partition = split(mesh)
+    node_group = np.full(mesh.n_nodes, -1)  # the last bulk group (material) whose cells hold each node
+    for k, (_, cells, _) in enumerate(material_cells(case, mesh, path)):  # every cell one material
+        node_group[mesh.cells[cells].ravel()] = k
+    check_boundary_groups(case, mesh, path)
+    monitors = resolve_monitors(case, mesh, path)
+    sets = []
+    for section, cells in zip(case.cohesive_sets, set_cells):
+        points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+        where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
+        junction = None
+        if section.form is CohesiveForm.rp:
+            root = tied_nodes(mesh)
+            junction = np.bincount(root, minlength=mesh.n_nodes)[root[points.minus]] >= 3
+        sets.append((section, cells, points, where, junction))
+    whole_mesh = case.embedded is not None  # crack paths tracked over every rank's cells
+    cutter = Cutter(mesh)
+    shares = []
+    for r in range(n_ranks):
+        if whole_mesh:
+            piece = cutter.piece(np.arange(mesh.cells.shape[0]), np.arange(mesh.interfaces.shape[0]))
+        else:
+            held = [cells[((where[p.segment_points] == r) & (p.segment_points >= 0)).any(axis=1)]
+                    for _, cells, p, where, _ in sets]
+            piece = cutter.piece(np.flatnonzero(part.cell_part == r),
+                                 np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
+        ids = piece.place.nodes  # type: ignore[union-attr]
+        coh = [CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
+                             where if section.form is CohesiveForm.rp else None,
+                             junction[where == r] if junction is not None else None)
+               for section, _, p, where, junction in sets]
+        shares.append(Share(case, piece, part.of_piece(r, piece.place.cells, piece.place.interfaces, ids),  # type: ignore[union-attr]
+                            coh, [m.on_piece(ids) for m in monitors]))
+    return mesh, shares

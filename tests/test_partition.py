@@ -66,6 +66,19 @@ def test_the_dofs_are_renumbered_in_one_contiguous_block_per_part(everywhere_mes
         np.testing.assert_array_equal(starts, [with_extras.owned_range(q)[0] for q in range(n)] + [with_extras.n_dofs])
         touched = np.concatenate([(2 * nodes[:, None] + np.arange(2)).ravel(), 2 * mesh.n_nodes + np.arange(14)])
         np.testing.assert_array_equal(petsc_of(touched), whole_new[touched])
+        # known by their counts and the rank's own only (rigid-plastic multipliers on a piece): alike
+        extra_owner = np.arange(7) % n
+        own = np.flatnonzero(extra_owner == r)
+        counted = p.of_piece(r, cells, interfaces, nodes).with_own_extras(np.bincount(extra_owner, minlength=n), own)
+        starts_c, owned_c, petsc_c = counted.numbering()
+        np.testing.assert_array_equal(starts_c, starts)
+        np.testing.assert_array_equal(owned_c, owned_r)
+        mine = np.concatenate([(2 * nodes[:, None] + np.arange(2)).ravel(),
+                               (2 * (mesh.n_nodes + own)[:, None] + np.arange(2)).ravel()])
+        np.testing.assert_array_equal(petsc_c(mine), whole_new[mine])
+        if n > 1:
+            with pytest.raises(ValueError, match="extra dofs another rank owns"):
+                petsc_c(np.array([2 * (mesh.n_nodes + int(np.flatnonzero(extra_owner != r)[0]))]))
         outside = np.setdiff1d(np.arange(mesh.n_nodes), nodes)
         if outside.size:
             with pytest.raises(ValueError, match="outside this rank's piece"):

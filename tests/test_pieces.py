@@ -93,7 +93,7 @@ def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(f
     root = tied_nodes(whole)
     junction = np.bincount(root, minlength=whole.n_nodes)[root[every.minus]] >= 3
     seen = []
-    for share in shares:
+    for r, share in enumerate(shares):
         mine, ids = share.cohesive[0], share.mesh.place.nodes
         p = mine.points
         assert mine.total == every.n
@@ -106,9 +106,11 @@ def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(f
         np.testing.assert_array_equal(p.x, every.x[k])
         if form == "rp":
             np.testing.assert_array_equal(mine.junction, junction[k])
-            assert mine.owners is not None and mine.owners.shape == (every.n,)
+            assert mine.owners is None  # each rank's count only: nothing of the set's size
+            assert mine.owner_counts is not None and mine.owner_counts.sum() == every.n
+            assert mine.owner_counts[r] == p.n
         else:
-            assert mine.owners is None and mine.junction is None
+            assert mine.owners is None and mine.junction is None and mine.owner_counts is None
         keep = np.zeros(every.n, dtype=bool)
         keep[k] = True
         np.testing.assert_array_equal(ids[p.segments], every.subset(keep).segments)  # its cells, on the piece

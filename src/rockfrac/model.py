@@ -107,6 +107,11 @@ class Model:
         """The whole model's numbers of dofs of the model's numbering (serially the same)."""
         return np.asarray(dofs, dtype=np.int64)
 
+    def whole_dofs(self, dofs: np.ndarray) -> np.ndarray:
+        """The whole model's numbers of dofs of the model's mesh (serially the same; an MPI rank's:
+        of its piece of the mesh)."""
+        return np.asarray(dofs, dtype=np.int64)
+
     def localized(self, f: np.ndarray) -> np.ndarray:
         """A vector over the first dofs of the model's mesh (the displacements, or all) as a vector of
         the model's (n_dofs,), zero on the others: an MPI rank keeps the entries of its local dofs (from

@@ -587,6 +587,24 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n):
     assert again.returncode == 2 and again.stderr.count("holds the outputs of another run") == 1, again.stderr
 
 
+def test_the_paper_form_with_monitors_on_ranks_writes_the_serial_history(tmp_path):
+    """`mpiexec -n 3 rockfrac run` of the paper's EP case ([loading]: u_axial and F_axial over the
+    top group) with a point's displacement, the opening between two groups and every group's mean
+    displacement and reaction: each rank holds part of each group, the means are the whole groups'
+    (history.csv as a serial run's)."""
+    case = paper_case("ep", 1e12, axial_steps=20, axial_displacement=0.4e-3)
+    case["monitors"] = [{"name": "corner", "kind": "displacement", "at": [0.04, 0.08]},
+                        {"name": "bulge", "kind": "opening", "groups": ["left", "right"], "direction": [1.0, 0.0]}]
+    case["output"] = {"picture": True}
+    paper = case_file(case, tmp_path / "paper.toml", tmp_path / "serial")
+    done = rockfrac_on_ranks(3, paper, tmp_path / "mpi")
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    par, ser = read_csv(tmp_path / "mpi" / "history.csv"), read_csv(tmp_path / "serial" / "history.csv")
+    assert {"u_axial", "F_axial", "corner_x", "bulge", "u_top_y", "R_bottom_y"} <= set(ser)
+    assert_same_table(par, ser, "history.csv")
+    assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
+
+
 def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     """2 ranks with a checkpoint every 30 steps, run to its stop rule (144 steps); resumed from the
     last checkpoint (step 120) on 2 ranks: the history is the uninterrupted one to the last bit.

@@ -184,6 +184,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         raise CaseError(f"{path}: [mesh]: {err}") from None
     cohesives: list = []
     extra_part = []  # the owning rank of each rigid-plastic point's multipliers, set after set
+    extra_counts, own_extras, offset = [], [], 0  # or each set's count on every rank, and this rank's own
     for k, section in enumerate(case.cohesive_sets):
         junction = None
         if share is None:
@@ -195,6 +196,10 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
             points, total, junction = mine.points, mine.total, mine.junction
             if mine.owners is not None:
                 extra_part.append(mine.owners)
+            if mine.owner_counts is not None:
+                extra_counts.append(mine.owner_counts)
+                own_extras.append(offset + np.asarray(points.index))
+                offset += total
         groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback, junction)
         for g in groups:
             if isinstance(g, CohesiveRP):
@@ -208,6 +213,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         extra_part.append(owner)
     if part is not None and extra_part:
         part = part.with_extras(np.concatenate(extra_part))
+    elif part is not None and extra_counts:  # a rank's piece: its own multipliers, the others' counted
+        part = part.with_own_extras(np.sum(extra_counts, axis=0), np.concatenate(own_extras))
     if distribution is None or part is None:
         model = Model(mesh.n_nodes, bulks + cohesives + extras, np.zeros(0, dtype=np.int64), dim=mesh.dim)
     else:

@@ -193,15 +193,21 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
     return crack_path(measure, stage.path_increment, active, stage.max_steps)
 
 
-def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None, key: str, path: str) -> None:
+def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None, key: str, path: str,
+                          model: Model) -> None:
     """control = 'energy' counts the work of the forces alone: every prescribed displacement of the
-    stage must be 0 from its start (the supports' reactions then do no work)."""
+    stage must be 0 from its start (the supports' reactions then do no work); on every MPI rank at
+    once, the dof named by its number in the whole model."""
     moving = sorted(d for d, v in presc.items() if v != 0.0 or (held is not None and held.get(d) != 0.0))
+    failure = None
     if moving:
-        raise CaseError(f"{path}: {key} control = 'energy': the stage moves prescribed displacements (dof "
-                        f"{moving[0]}{' and others' if len(moving) > 1 else ''}: nonzero, or not held at 0 before "
-                        "the stage); the energy released is that of forces on supports held at 0. Drive a "
-                        "displacement-loaded stage with control = 'path', 'opening' or 'arc_length'")
+        failure = (f"{path}: {key} control = 'energy': the stage moves prescribed displacements (dof "
+                   f"{int(model.whole_dofs(np.array(moving[:1]))[0])}{' and others' if len(moving) > 1 else ''}: "
+                   "nonzero, or not held at 0 before the stage); the energy released is that of forces on supports "
+                   "held at 0. Drive a displacement-loaded stage with control = 'path', 'opening' or 'arc_length'")
+    failure = model.agree(failure)
+    if failure is not None:
+        raise CaseError(failure)
 
 
 def opening_measure(m: Monitor, dim: int, n_dofs: int, model: Model | None = None) -> Measure:
@@ -355,7 +361,7 @@ def build_program(case: Case, mesh: Mesh, model: Model, bulks: list, cohesives: 
         f_full = model.summed(f_end)
         dofs, values = _prescribed(model, presc)
         if st.control == "energy":
-            _check_still_supports(presc, held, key, path)
+            _check_still_supports(presc, held, key, path, model)
         name = st.name or f"stage {k + 1}"
         stages.append(Stage(name, st.steps, values, f_full, path_spec(st, surfaces, mesh, model, monitors, thickness,
                                                                  key, path),

@@ -30,14 +30,16 @@ from rockfrac.output.history import Monitor
 @dataclass
 class CohesiveShare:
     """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
-    group on each point's minus side (its in-situ stress), and for a rigid-plastic set the rank of
-    every point of the set (its multipliers' owner) and which of the rank's points sit at a junction
-    (a node split into three copies or more, in the whole mesh)."""
+    group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
+    points each rank has (their multipliers' blocks; with the whole mesh on every rank, each point's
+    rank) and which of the rank's points sit at a junction (a node split into three copies or more,
+    in the whole mesh)."""
 
     points: InterfacePoints
     total: int
     minus_group: np.ndarray  # the bulk group (material) of the cells round each point's minus node, the last
-    owners: np.ndarray | None = None
+    owner_counts: np.ndarray | None = None  # rigid-plastic: the set's points on each rank
+    owners: np.ndarray | None = None  # rigid-plastic, every rank with the whole mesh: each point's rank
     junction: np.ndarray | None = None
 
 
@@ -91,10 +93,13 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, list[S
             piece = cutter.piece(np.flatnonzero(part.cell_part == r),
                                  np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
         ids = piece.place.nodes  # type: ignore[union-attr]
-        coh = [CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
-                             where if section.form is CohesiveForm.rp else None,
-                             junction[where == r] if junction is not None else None)
-               for section, _, p, where, junction in sets]
+        coh = []
+        for section, _, p, where, junction in sets:
+            rp = section.form is CohesiveForm.rp
+            coh.append(CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
+                                     np.bincount(where, minlength=n_ranks) if rp else None,
+                                     where if rp and whole_mesh else None,
+                                     junction[where == r] if junction is not None else None))
         shares.append(Share(case, piece, part.of_piece(r, piece.place.cells, piece.place.interfaces, ids),  # type: ignore[union-attr]
                             coh, [m.on_piece(ids) for m in monitors]))
     return mesh, shares

@@ -115,32 +115,54 @@ class RankPartition:
     node_ids: np.ndarray
     n_nodes: int
     extra_part: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    extra_counts: np.ndarray | None = None  # the extra blocks of each part, when only the rank's own are known
+    own_extras: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @property
+    def n_extras(self) -> int:
+        return int(self.extra_counts.sum()) if self.extra_counts is not None else self.extra_part.shape[0]
 
     @property
     def n_dofs(self) -> int:
-        return self.dim * (self.n_nodes + self.extra_part.shape[0])
+        return self.dim * (self.n_nodes + self.n_extras)
 
     def with_extras(self, extra_part: np.ndarray) -> RankPartition:
         """As :meth:`Partition.with_extras` (``extra_part``: every extra block's owner, the whole model's)."""
-        return replace(self, extra_part=np.asarray(extra_part, dtype=np.int64))
+        return replace(self, extra_part=np.asarray(extra_part, dtype=np.int64), extra_counts=None)
+
+    def with_own_extras(self, counts: np.ndarray, own: np.ndarray) -> RankPartition:
+        """The extra blocks known by their count in each part and by this rank's own (their indices,
+        ascending): nothing of the whole model's size, for a rank whose groups touch only its own
+        extra dofs (rigid-plastic multipliers)."""
+        return replace(self, extra_part=np.zeros(0, dtype=np.int64), extra_counts=np.asarray(counts, dtype=np.int64),
+                       own_extras=np.asarray(own, dtype=np.int64))
 
     def numbering(self) -> tuple[np.ndarray, np.ndarray, PetscIndex]:
         """Each part's first renumbered dof (n_parts + 1,), this rank's own dofs (global numbering,
         in renumbered order) and the map of global dofs (of the piece's nodes and any extras) to
         renumbered ones."""
-        extra_counts = np.bincount(self.extra_part, minlength=self.n_parts)
-        first = np.concatenate([[0], np.cumsum(self.node_counts + extra_counts)])
-        order = np.argsort(self.extra_part, kind="stable")  # extras by part, then by index
-        extra_block = np.empty_like(order)
-        extra_block[order] = np.arange(order.shape[0]) - np.concatenate([[0], np.cumsum(extra_counts)])[
-            self.extra_part[order]] + first[self.extra_part[order]] + self.node_counts[self.extra_part[order]]
+        known = self.extra_counts is None  # every extra block's owner, or this rank's own blocks only
+        counts = np.bincount(self.extra_part, minlength=self.n_parts) if known else self.extra_counts
+        assert counts is not None
+        first = np.concatenate([[0], np.cumsum(self.node_counts + counts)])
+        if known:
+            order = np.argsort(self.extra_part, kind="stable")  # extras by part, then by index
+            part = self.extra_part[order]
+            extra_ids = np.arange(order.shape[0])
+            extra_block = np.empty_like(order)
+            extra_block[order] = (np.arange(order.shape[0]) - np.concatenate([[0], np.cumsum(counts)])[part]
+                                  + first[part] + self.node_counts[part])
+            own = np.flatnonzero(self.extra_part == self.rank)
+        else:
+            extra_ids = own = self.own_extras
+            extra_block = first[self.rank] + self.node_counts[self.rank] + np.arange(own.shape[0])
         node_block = first[self.node_part] + self.node_block
         mine = np.flatnonzero(self.node_part == self.rank)
-        blocks = np.concatenate([self.node_ids[mine[np.argsort(self.node_block[mine])]],
-                                 self.n_nodes + np.flatnonzero(self.extra_part == self.rank)])
+        blocks = np.concatenate([self.node_ids[mine[np.argsort(self.node_block[mine])]], self.n_nodes + own])
         comps = np.arange(self.dim)
         owned = (self.dim * blocks[:, None] + comps).ravel()
-        return self.dim * first, owned, PetscIndex(self.dim, self.node_ids, node_block, self.n_nodes, extra_block)
+        return self.dim * first, owned, PetscIndex(self.dim, self.node_ids, node_block, self.n_nodes, extra_ids,
+                                                   extra_block)
 
 
 @dataclass(frozen=True)
@@ -151,19 +173,26 @@ class PetscIndex:
     node_ids: np.ndarray
     node_block: np.ndarray
     n_nodes: int
+    extra_ids: np.ndarray  # the extra blocks known here (ascending)
     extra_block: np.ndarray
 
     def __call__(self, dofs: np.ndarray) -> np.ndarray:
         dofs = np.asarray(dofs, dtype=np.int64)
         block, comp = np.divmod(dofs, self.dim)
         node = block < self.n_nodes
-        at = np.searchsorted(self.node_ids, block[node])
-        if node.any() and (at.max() >= self.node_ids.shape[0] or np.any(self.node_ids[at] != block[node])):
-            raise ValueError("dofs of nodes outside this rank's piece of the mesh")
         out = np.empty_like(block)
-        out[node] = self.node_block[at]
-        out[~node] = self.extra_block[block[~node] - self.n_nodes]
+        out[node] = self.node_block[_find(self.node_ids, block[node], "dofs of nodes outside this rank's piece")]
+        out[~node] = self.extra_block[_find(self.extra_ids, block[~node] - self.n_nodes,
+                                            "extra dofs another rank owns (only the rank's own are known here)")]
         return self.dim * out + comp
+
+
+def _find(ids: np.ndarray, wanted: np.ndarray, what: str) -> np.ndarray:
+    """The places of ``wanted`` in the ascending ``ids``, every one of them there (else ValueError)."""
+    at = np.searchsorted(ids, wanted)
+    if wanted.size and (at.max() >= ids.shape[0] or np.any(ids[at] != wanted)):
+        raise ValueError(what)
+    return at
 
 
 def element_graph(mesh: Mesh) -> sp.csr_matrix:

@@ -24,9 +24,13 @@ class Cutter:
     def __init__(self, mesh: Mesh):
         self.mesh = mesh
         sets = mesh.edge_sets if mesh.dim == 2 else mesh.face_sets
-        self.side_cells = {name: side_cells(mesh, sides) for name, sides in sets.items()}
         self.outer = outer_boundary(mesh)
-        self.outer_cells = side_cells(mesh, self.outer)
+        groups = list(sets.values()) + [self.outer]
+        width = self.outer.shape[1]  # one search over the cells' sides for every group
+        cells = side_cells(mesh, np.vstack([np.asarray(g, dtype=np.int64).reshape(-1, width) for g in groups]))
+        parts = np.split(cells, np.cumsum([len(g) for g in groups])[:-1])
+        self.side_cells = dict(zip(sets, parts[:-1]))
+        self.outer_cells = parts[-1]
 
     def piece(self, cells: np.ndarray, interfaces: np.ndarray, nodes: np.ndarray | None = None) -> Mesh:
         """The piece of the given cells and interface cells (whole mesh's indices), with the nodes

@@ -202,9 +202,9 @@ class History:
         values are the sums of the ranks' products (one reduction per row)."""
         d, on_u, on_f, on_r = self.dim, [], [], []
         if self.axial_dofs is not None:
-            n = self.axial_count if self.axial_count is not None else len(self.axial_dofs)
-            on_u.append(("u_axial", self.axial_dofs, np.full(n, -1.0 / n)))
-            on_f.append(("F_axial", self.axial_dofs, np.full(n, -1.0 / self.thickness)))
+            n = self.axial_count if self.axial_count is not None else len(self.axial_dofs)  # the whole group's
+            on_u.append(("u_axial", self.axial_dofs, np.full(len(self.axial_dofs), -1.0 / n)))
+            on_f.append(("F_axial", self.axial_dofs, np.full(len(self.axial_dofs), -1.0 / self.thickness)))
         for g, ids in self.groups.items():
             for a in range(d):
                 on_u.append((f"u_{g}_{AXES[a]}", d * ids + a, np.full(ids.size, 1.0 / self.sizes[g])))

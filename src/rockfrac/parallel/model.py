@@ -105,6 +105,9 @@ class DistributedModel(Model):
     def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
         return self.layout.numbering.global_(dofs)
 
+    def whole_dofs(self, dofs: np.ndarray) -> np.ndarray:
+        return self.piece.to_global(dofs)
+
     def localized(self, f: np.ndarray) -> np.ndarray:
         """f over the displacement dofs of the rank's piece of the mesh, on the local dofs."""
         at = self._piece_u

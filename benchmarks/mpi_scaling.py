@@ -22,7 +22,8 @@ Times: set-up (case to model: mesh, partition, groups, pattern, preallocation), 
 residual and tangent, with the ranks' sums and the matrix's insertion), solve (factorizations and
 solves), Newton iterations, the largest resident memory of a rank. Machine and load are recorded
 with every row; results go to ``benchmarks/results/mpi_scaling.json`` and the "MPI scaling" table
-of ``benchmarks/README.md``. ``--quick``: small sizes, prints only.
+of ``benchmarks/README.md``. ``--quick``: small sizes, prints only. ``--held``: set-up only, on 2
+ranks, the arrays each rank's mesh, partition and layout hold (a rank's piece of the mesh).
 """
 
 from __future__ import annotations
@@ -200,6 +201,47 @@ PLAN = {  # problem -> [(dofs, ranks, serial)]: strong (the size on 1 and 2 rank
 }
 
 
+def _nbytes(obj, seen: set) -> int:
+    """The bytes of the NumPy arrays reachable from obj through attributes, dicts, lists, tuples."""
+    import numpy as np
+
+    if id(obj) in seen:
+        return 0
+    seen.add(id(obj))
+    if isinstance(obj, np.ndarray):
+        return obj.nbytes
+    if isinstance(obj, dict):
+        return sum(_nbytes(v, seen) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return sum(_nbytes(v, seen) for v in obj)
+    return sum(_nbytes(v, seen) for v in vars(obj).values()) if hasattr(obj, "__dict__") else 0
+
+
+def held_child(problem: str, dofs: float, out: Path) -> None:
+    """One rank of `--held`: build the case, then the arrays of its mesh, partition and layout [MiB]
+    and its peak so far [GiB], every rank's row written by rank 0."""
+    import numpy as np
+    from mpi4py import MPI
+
+    from rockfrac.case.schema import parse_case
+    from rockfrac.parallel.run import build_distributed
+
+    comm = MPI.COMM_WORLD
+    folder = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
+    case = case_2d(dofs) if problem == "2d" else case_3d(dofs, folder) if comm.rank == 0 else None
+    built = build_distributed(parse_case(comm.bcast(case, root=0), problem), comm)
+    seen: set = set()
+    layout = built.model.layout  # type: ignore[attr-defined]
+    mine = {"rank": comm.rank, "mesh_mib": _nbytes(built.mesh, seen) / 2**20,
+            "partition_mib": _nbytes(built.partition, seen) / 2**20,
+            "layout_mib": _nbytes({k: v for k, v in vars(layout).items() if isinstance(v, np.ndarray)}, seen) / 2**20,
+            "peak_after_setup_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+    rows = comm.gather({k: round(v, 2) for k, v in mine.items()}, root=0)
+    if comm.rank == 0:
+        out.write_text(json.dumps({"problem": problem, "dofs": int(built.model.n_dofs_global), "ranks": rows}))
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
@@ -207,9 +249,25 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="small sizes, print only")
     ap.add_argument("--problems", nargs="+", default=["2d", "3d", "cohesive", "joints"])
     ap.add_argument("--timeout", type=float, default=3600.0)
+    ap.add_argument("--held", action="store_true", help="2 ranks, set-up only: the arrays of each rank's "
+                    "mesh, partition and layout, and its peak after set-up (2d, 3d)")
+    ap.add_argument("--held-child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
     args = ap.parse_args()
     if args.child:
         child(args.child[0], float(args.child[1]), args.serial, Path(args.child[2]))
+        return
+    if args.held_child:
+        held_child(args.held_child[0], float(args.held_child[1]), Path(args.held_child[2]))
+        return
+    if args.held:
+        env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+        for problem in [p for p in args.problems if p in ("2d", "3d")]:
+            out = Path(tempfile.mkdtemp()) / "held.json"
+            subprocess.run([shutil.which("mpiexec") or "mpiexec", "-n", "2", sys.executable, str(Path(__file__).resolve()),
+                            "--held-child", problem, str(1e6 / 50 if args.quick else 1e6), str(out)], env=env,
+                           check=True, timeout=args.timeout)
+            print(json.dumps(dict(json.loads(out.read_text()), date=time.strftime("%Y-%m-%d %H:%M"),
+                                  load=round(os.getloadavg()[0], 2))))
         return
     machine = {"machine": platform.node(), "cpu": platform.processor() or platform.machine(),
                "cores": os.cpu_count(), "python": platform.python_version(), "date": time.strftime("%Y-%m-%d %H:%M")}

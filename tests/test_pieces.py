@@ -45,7 +45,8 @@ def _rows(a: np.ndarray) -> set:
 @pytest.mark.parametrize("n", [2, 3])
 def test_the_pieces_put_together_are_the_whole_mesh_each_part_once(n):
     case = resolve(parse_case(_disc(), "disc"), "disc")
-    whole, shares = cut_shares(case, "disc", n, lambda mesh: partition(mesh, n))
+    whole, cut = cut_shares(case, "disc", n, lambda mesh: partition(mesh, n))
+    shares = list(cut)
     assert len(shares) == n
     cells, interfaces, outer = [], [], []
     sides = {name: [] for name in whole.edge_sets}
@@ -88,7 +89,8 @@ def test_the_pieces_put_together_are_the_whole_mesh_each_part_once(n):
 def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(form):
     n = 3
     case = resolve(parse_case(_disc(form), "disc"), "disc")
-    whole, shares = cut_shares(case, "disc", n, lambda mesh: partition(mesh, n))
+    whole, cut = cut_shares(case, "disc", n, lambda mesh: partition(mesh, n))
+    shares = list(cut)
     every = interface_points(whole.nodes, whole.interfaces)  # the one set: every interface cell
     root = tied_nodes(whole)
     junction = np.bincount(root, minlength=whole.n_nodes)[root[every.minus]] >= 3
@@ -119,7 +121,8 @@ def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(f
 
 def test_a_monitor_on_a_piece_keeps_the_whole_groups_counts():
     case = resolve(parse_case(_disc(), "disc"), "disc")
-    whole, shares = cut_shares(case, "disc", 2, lambda mesh: partition(mesh, 2))
+    whole, cut = cut_shares(case, "disc", 2, lambda mesh: partition(mesh, 2))
+    shares = list(cut)
     nodes = next(v for v in whole.node_sets.values() if v.shape[0] > 2)
     m = Monitor("gap", ["gap"], (nodes, nodes[:1]), np.array([1.0, 0.0]), "")
     for share in shares:

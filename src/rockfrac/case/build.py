@@ -6,7 +6,7 @@ initial state out of equilibrium...) surfaces here as a CaseError, before any st
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,7 +49,7 @@ class Distribution:
     whole mesh and every rank's share from it, ``share(make)``: ``make(n_ranks, split)`` on rank 0),
     this rank, and the model over its elements."""
 
-    share: Callable[[Callable[[int, Callable[[Mesh], Partition]], tuple[Mesh, list[Share]]]], Share]
+    share: Callable[[Callable[[int, Callable[[Mesh], Partition]], tuple[Mesh, Iterator[Share]]]], Share]
     rank: int
     make_model: Callable[[Mesh, list[ElementGroup], RankPartition], Model]
     make_solver: Callable[[str, int, int, bool], Any]  # [solver] linear, dofs, dimension, nodal cracks -> solver

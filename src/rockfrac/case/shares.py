@@ -10,6 +10,7 @@ cracks gives every rank the whole mesh: their paths are tracked over every rank'
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -63,8 +64,9 @@ def _on_piece(points: InterfacePoints, ids: np.ndarray) -> InterfacePoints:
                    segments=np.searchsorted(ids, points.segments))
 
 
-def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, list[Share]]:
-    """The whole split mesh and every rank's share (``case`` resolved; ``split(mesh)``: the partition)."""
+def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterator[Share]]:
+    """The whole split mesh, every input error raised, and the ranks' shares, cut one at a time in
+    rank order as they are taken (``case`` resolved; ``split(mesh)``: the partition)."""
     mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     part: Partition = split(mesh)
     node_group = np.full(mesh.n_nodes, -1)  # the last bulk group (material) whose cells hold each node
@@ -83,7 +85,13 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, list[S
         sets.append((section, cells, points, where, junction))
     whole_mesh = case.embedded is not None  # crack paths tracked over every rank's cells
     cutter = Cutter(mesh)
-    shares = []
+    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh)
+
+
+def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list, node_group: np.ndarray,
+            monitors: list[Monitor], n_ranks: int, whole_mesh: bool) -> Iterator[Share]:
+    """Each rank's share in turn (see :func:`cut_shares`)."""
+    blocks = part.node_blocks()
     for r in range(n_ranks):
         if whole_mesh:
             piece = cutter.piece(np.arange(mesh.cells.shape[0]), np.arange(mesh.interfaces.shape[0]))
@@ -100,6 +108,7 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, list[S
                                      np.bincount(where, minlength=n_ranks) if rp else None,
                                      where if rp and whole_mesh else None,
                                      junction[where == r] if junction is not None else None))
-        shares.append(Share(case, piece, part.of_piece(r, piece.place.cells, piece.place.interfaces, ids),  # type: ignore[union-attr]
-                            coh, [m.on_piece(ids) for m in monitors]))
-    return mesh, shares
+        place = piece.place
+        assert place is not None
+        yield Share(case, piece, part.of_piece(r, place.cells, place.interfaces, ids, blocks), coh,
+                    [m.on_piece(ids) for m in monitors])

@@ -85,11 +85,14 @@ class Partition:
         place[self.node_order] = np.arange(self.node_order.shape[0]) - self.node_starts[self.node_part[self.node_order]]
         return place
 
-    def of_piece(self, rank: int, cells: np.ndarray, interfaces: np.ndarray, nodes: np.ndarray) -> RankPartition:
+    def of_piece(self, rank: int, cells: np.ndarray, interfaces: np.ndarray, nodes: np.ndarray,
+                 blocks: np.ndarray | None = None) -> RankPartition:
         """What rank ``rank`` needs of the partition for its piece of the mesh (the whole mesh's
-        indices of the piece's cells, interface cells and nodes, each ascending)."""
+        indices of the piece's cells, interface cells and nodes, each ascending; ``blocks``:
+        :meth:`node_blocks`, made once for every rank's piece)."""
+        blocks = self.node_blocks() if blocks is None else blocks
         return RankPartition(self.n_parts, self.dim, rank, self.cell_part[cells], self.interface_part[interfaces],
-                             self.node_part[nodes], self.node_blocks()[nodes], np.diff(self.node_starts),
+                             self.node_part[nodes], blocks[nodes], np.diff(self.node_starts),
                              np.asarray(nodes, dtype=np.int64), self.node_part.shape[0], self.extra_part)
 
 

@@ -262,9 +262,10 @@ class History:
             pairs = np.concatenate([p for p, _ in mine] + [np.zeros((0, 2), dtype=np.int64)])
             if self.mesh.place is not None:  # the whole mesh's node numbers
                 pairs = self.mesh.place.nodes[pairs]
-            every = np.concatenate(self.model.allgather(pairs))
+            every = self.model.gather_lead(pairs)  # to the rank that counts the pieces
             if self.fragments is not None:
-                self.pieces = self.fragments.pieces(every)
+                assert every is not None
+                self.pieces = self.fragments.pieces(np.concatenate(every))
             row["n_fragments"] = self.model.share(self.pieces.count if self.pieces is not None else 0)
             row["separated"] = self.model.reduce_sum(sum(a for _, a in mine)) / self.thickness
         row["time"] = info.stage_index + info.load_factor

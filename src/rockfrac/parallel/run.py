@@ -39,17 +39,24 @@ def distribution(comm) -> Distribution:
         return partition(mesh, size)
 
     def share(make) -> Share:
-        whole, shares = None, None
+        """Rank 0 makes the whole mesh and cuts the shares, sending each as it is cut (it holds one
+        at a time beside its own); an input error is raised on every rank."""
+        failure = None
         if rank == 0:
             try:
                 whole, shares = make(size, split)
+                mine = next(shares)
             except (CaseError, ValueError) as err:
-                shares = [err] * size  # every rank raises it, none waits for the others
-        mine = comm.scatter(shares, root=0)
-        if isinstance(mine, (CaseError, ValueError)):
-            raise mine
-        mine.whole = whole
-        return mine
+                failure = err
+        failure = comm.bcast(failure, root=0)  # every rank raises it, none waits for the others
+        if failure is not None:
+            raise failure
+        if rank == 0:
+            for r in range(1, size):
+                comm.send(next(shares), dest=r)
+            mine.whole = whole
+            return mine
+        return comm.recv(source=0)
 
     def make_model(mesh: Mesh, groups: list[ElementGroup], part: RankPartition) -> DistributedModel:
         return DistributedModel(part.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,

@@ -14,8 +14,7 @@ from rockfrac.output.vtk import CellKind, CrackState, StepFields, step_fields
 
 def _bulk_fields(built, u: np.ndarray, cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Per-cell fields over all bulk groups: stress (6), plastic strain (6), gamma, localized, region;
-    of every cell (summed over the MPI ranks, each cell on one), or of this rank's ``cells`` (sorted,
-    for its piece: no reduction)."""
+    of every cell of a serial model, or of an MPI rank's own ``cells`` (sorted, for its piece)."""
     n_el = built.mesh.cells.shape[0] if cells is None else cells.shape[0]
     out = {"stress": np.zeros((n_el, 6)), "plastic_strain": np.zeros((n_el, 6)), "gamma": np.zeros(n_el),
            "localized": np.zeros(n_el, dtype=np.int8), "region": np.zeros(n_el, dtype=np.int32)}
@@ -24,9 +23,7 @@ def _bulk_fields(built, u: np.ndarray, cells: np.ndarray | None = None) -> dict[
         out["region"][rows] = k
         for name, values in g.cell_fields(u).items():
             out[name][rows] = values
-    if cells is not None:
-        return out
-    return {name: built.model.reduce_sum(v) for name, v in out.items()}
+    return out
 
 
 def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp: np.ndarray):
@@ -42,9 +39,9 @@ def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp:
 
 def _interface_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
     """Per interface cell: the mean of its node-pair points (jump, traction, strengths, state), the
-    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); the sums over the points of every
-    rank of a distributed model (whole = False: on this rank's own interface cells only, each rank's
-    share sent to the cell's owner, the others' entries left empty)."""
+    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); of a serial model, or (whole =
+    False) of an MPI rank's own interface cells of its piece, each rank's sums over its points sent
+    to the cells' owners (the others' entries left empty)."""
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
     n_if, half = cells.shape[0], cells.shape[1] // 2
@@ -73,12 +70,7 @@ def _interface_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.
                 sums[name][hit] += v[idx[hit]]
             count[hit] += 1
             state[hit] = np.maximum(state[hit], st[idx[hit]])
-    model = built.model
-    if whole:
-        sums = {name: model.reduce_sum(v) for name, v in sums.items()}
-        count, state = model.reduce_sum(count), model.reduce_max(state)
-        written = {name: model.reduce_max(w) for name, w in written.items()}
-    else:
+    if not whole:
         sums, count, state, written = _to_owners(built, sums, count, state, written)
     for name, w in written.items():  # NaN where the cell's law has no such quantity
         sums[name][w == 0] = np.nan
@@ -265,10 +257,10 @@ def _as_in_the_whole_grid(piece: StepFields, kinds: list, cell_ids: list[np.ndar
 
 
 def step_output(built, u: np.ndarray) -> StepFields:
-    """The ParaView fields of the committed state at displacement u (on several MPI ranks, the whole
-    model's, a collective call)."""
+    """The ParaView fields of a serial model's committed state at displacement u (an MPI run's
+    ranks make pieces, :func:`step_piece`, which :func:`rockfrac.output.vtk.join_pieces` joins)."""
     mesh = built.mesh
-    disp = built.model.gather(u)[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
+    disp = u[: mesh.dim * mesh.n_nodes].reshape(-1, mesh.dim)
     segments, hosts, seg_data = _segments(built)
     triangles, _, tri_data, tri_points = _surfaces(built, lambda a: disp[a])
     return step_fields(

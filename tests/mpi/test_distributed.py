@@ -243,6 +243,15 @@ def gravity_case() -> dict:
                        {"name": "push", "steps": 3, "pressure": {"top": 2e5}, "gravity": [0.0, -2 * g]}]}
 
 
+def grains_case() -> dict:
+    """examples/grains (EP surfaces on the grain boundaries), its first 0.3 mm in 6 steps: the set's
+    first activations, on the points of several ranks."""
+    case = tomllib.loads((ROOT / "examples" / "grains" / "grains.toml").read_text())
+    case["loading"].update(axial_displacement=0.3e-3, axial_steps=6)
+    case["output"] = {"picture": False, "vtk": False, "points": False}
+    return case
+
+
 def joint_2d_case(max_steps: int = 30) -> dict:
     """examples/joint: a joint given in advance ([[embedded.cracks]]) across 20 x 40 EDE quads, through
     mesh nodes (moved off them by the cut), sliding at its closed form."""
@@ -276,6 +285,9 @@ CASES = {
     "bar_arc_length": lambda: bar_case("arc_length"),
     "bar_energy": lambda: bar_case("energy"),
     "cmod_opening": cmod_case,
+    # surfaces on every grain boundary of examples/grains (gmsh quads, two materials): each activation
+    # of the set is located as an event only while no share of the set, on any rank, has yielded
+    "grains_ep": grains_case,
     # an initial state: in-situ stress, its release, gravity at t = 0 and in a stage
     "breakout_initial": breakout_case,
     "gravity_initial": gravity_case,

@@ -20,7 +20,11 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
                         solver: LinearSolver) -> float | None:
     """The fraction of the load increment lam -> lam + dlam at which a pending surface first
     yields along the committed tangent's response, or None (none pending, or none yields)."""
-    if not model.reduce_any(any(g.activation_pending() for g in model.groups)):
+    # a group of a distributed model is each rank's share of a surface: pending on every rank, or not at all
+    # (a share without a plastic point on one rank while the set yields on another is not pending)
+    held = model.reduce_max(np.array([0.0 if g.activation_pending() else 1.0 for g in model.groups]))
+    pending = [g for g, h in zip(model.groups, held) if h == 0.0]
+    if not pending:
         return None
     model.begin_step()  # the trial state is the committed one: the tangent at u
     asm = model.assemble(u, u, loads.forces(lam))
@@ -38,6 +42,6 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
         return None
     if not model.reduce_all_finite(du):
         return None
-    found = [s for g in model.groups if (s := g.activation(u, du)) is not None]
+    found = [s for g in pending if (s := g.activation(u, du)) is not None]
     first = model.reduce_min(min(found) if found else np.inf)
     return first if np.isfinite(first) else None

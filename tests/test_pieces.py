@@ -16,7 +16,7 @@ from rockfrac.case.build import build, resolve
 from rockfrac.case.schema import parse_case
 from rockfrac.case.shares import cut_shares
 from rockfrac.elements.interface_points import interface_points
-from rockfrac.mesh.interfaces import tied_nodes
+from rockfrac.mesh.interfaces import looped_pairs, tied_nodes
 from rockfrac.mesh.partition import partition
 from rockfrac.mesh.topology import outer_boundary, same_nodes
 from rockfrac.output.fields import step_output
@@ -94,6 +94,8 @@ def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(f
     every = interface_points(whole.nodes, whole.interfaces)  # the one set: every interface cell
     root = tied_nodes(whole)
     junction = np.bincount(root, minlength=whole.n_nodes)[root[every.minus]] >= 3
+    on_loops = looped_pairs(every.minus, every.plus, whole.n_nodes)
+    assert on_loops.any() and not on_loops.all()
     seen = []
     for r, share in enumerate(shares):
         mine, ids = share.cohesive[0], share.mesh.place.nodes
@@ -108,11 +110,12 @@ def test_each_ranks_points_are_the_whole_sets_with_their_weights_and_junctions(f
         np.testing.assert_array_equal(p.x, every.x[k])
         if form == "rp":
             np.testing.assert_array_equal(mine.junction, junction[k])
+            np.testing.assert_array_equal(mine.on_loops, on_loops[k])
             assert mine.owners is None  # each rank's count only: nothing of the set's size
             assert mine.owner_counts is not None and mine.owner_counts.sum() == every.n
             assert mine.owner_counts[r] == p.n
         else:
-            assert mine.owners is None and mine.junction is None and mine.owner_counts is None
+            assert mine.owners is None and mine.junction is None and mine.owner_counts is None and mine.on_loops is None
         keep = np.zeros(every.n, dtype=bool)
         keep[k] = True
         np.testing.assert_array_equal(ids[p.segments], every.subset(keep).segments)  # its cells, on the piece

@@ -72,18 +72,16 @@ def case_warnings(built: Built) -> list[str]:
     """Things a user should know before trusting the run (not errors: the run goes ahead)."""
     out = []
     model = built.model
-    if any(isinstance(g, CohesiveRP) for g in built.cohesives):  # the pairs of every set, on every rank
-        place = built.mesh.place  # an MPI rank's piece: the whole mesh's node numbers
-        ids = place.nodes if place is not None else np.arange(built.mesh.n_nodes)
-        minus, plus = (np.concatenate([a for part in model.allgather([ids[getattr(g.points, side)]
-                                                                      for g in built.cohesives])
-                                       for a in part]) for side in ("minus", "plus"))
-        on_loops = looped_pairs(minus, plus, place.n_nodes if place is not None else built.mesh.n_nodes)
-        looped = set(zip(minus[on_loops].tolist(), plus[on_loops].tolist()))
-    for coh, group in zip(built.case.cohesive_sets, built.cohesives):
+    loops: list[np.ndarray | None] | None = built.loops  # an MPI rank's: found by rank 0 on the whole mesh
+    if loops is None and any(isinstance(g, CohesiveRP) for g in built.cohesives):  # the pairs of every set
+        on_loops = looped_pairs(np.concatenate([g.points.minus for g in built.cohesives]),
+                                np.concatenate([g.points.plus for g in built.cohesives]), built.mesh.n_nodes)
+        loops = list(np.split(on_loops, np.cumsum([g.points.n for g in built.cohesives])[:-1]))
+    for j, (coh, group) in enumerate(zip(built.case.cohesive_sets, built.cohesives)):
         if isinstance(group, CohesiveRP):
-            mine = sum(pair in looped for pair in zip(ids[group.points.minus].tolist(), ids[group.points.plus].tolist()))
-            count = model.reduce_sum(mine)
+            mask = loops[j] if loops is not None else None
+            assert mask is not None
+            count = model.reduce_sum(int(np.count_nonzero(mask)))
             if count:
                 out.append(f"RP CSE {group.name!r}: {count} of its points lie on loops of surfaces round a node (a node "
                            "inside the mesh split on every edge round it). Held by the others, such a rigid-plastic "

@@ -617,6 +617,30 @@ def test_the_paper_form_with_monitors_on_ranks_writes_the_serial_history(tmp_pat
     assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
 
 
+def test_rigid_plastic_surfaces_on_loops_are_counted_on_the_whole_mesh(tmp_path):
+    """`mpiexec -n 2 rockfrac run` of the coarse disc with RP surfaces on every edge: the warning on
+    the points that lie on loops of pairs round a node counts them on the whole mesh, as one process
+    does (rank 0 finds them; a rank's piece cuts the loops)."""
+    case = tomllib.loads((ROOT / "examples" / "rock_tests" / "brazilian" / "everywhere.toml").read_text())
+    case["mesh"]["file"] = str(ROOT / "examples" / "rock_tests" / "brazilian" / "disc_coarse.msh")
+    case["cohesive"].update(form="rp")
+    for key in ("kn", "kt"):
+        case["cohesive"].pop(key)
+    case["stages"][0].update(steps=2, control="load")
+    case["stages"][0].pop("max_steps")
+    case["output"] = {"picture": False}
+    disc = case_file(case, tmp_path / "disc.toml", tmp_path / "serial")
+    done = rockfrac_on_ranks(2, disc, tmp_path / "mpi")
+    assert done.returncode in (0, 1), done.stdout[-2000:] + done.stderr[-2000:]
+
+    def loops(folder: Path) -> list[str]:
+        return [line for line in (folder / "run.log").read_text().splitlines() if "lie on loops" in line]
+
+    serial = loops(tmp_path / "serial")
+    assert len(serial) == 1 and "835 of its points" in serial[0], serial  # 888 points, 835 on loops
+    assert loops(tmp_path / "mpi") == serial
+
+
 def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     """2 ranks with a checkpoint every 30 steps, run to its stop rule (144 steps); resumed from the
     last checkpoint (step 120) on 2 ranks: the history is the uninterrupted one to the last bit.

@@ -70,6 +70,7 @@ class Built:
     partition: RankPartition | None = None  # a distributed run's: the groups hold this rank's elements only
     monitors: list[Monitor] = field(default_factory=list)  # [[monitors]] on the mesh's nodes
     whole: Mesh | None = None  # the whole mesh (an MPI run: on rank 0 only; ``mesh`` is the rank's piece)
+    loops: list[np.ndarray | None] | None = None  # an MPI rank's: each set's points on loops of pairs (rank 0's)
 
     @property
     def stages(self) -> list[Stage]:
@@ -227,4 +228,5 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     if program.stages and program.stages[0].dirichlet is not None:
         model.set_dirichlet(program.stages[0].dirichlet)
     return Built(case, mesh, model, program, thickness, bulks, cohesives, part, monitors,
-                 share.whole if share is not None else mesh)
+                 share.whole if share is not None else mesh,
+                 [c.on_loops for c in share.cohesive] if share is not None else None)

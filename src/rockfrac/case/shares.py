@@ -21,7 +21,7 @@ from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.schema import Case
 from rockfrac.elements.interface_points import InterfacePoints, interface_points, interface_points_3d
-from rockfrac.mesh.interfaces import tied_nodes
+from rockfrac.mesh.interfaces import looped_pairs, tied_nodes
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
 from rockfrac.mesh.piece import Cutter
@@ -33,8 +33,8 @@ class CohesiveShare:
     """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
     group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
     points each rank has (their multipliers' blocks; with the whole mesh on every rank, each point's
-    rank) and which of the rank's points sit at a junction (a node split into three copies or more,
-    in the whole mesh)."""
+    rank), which of the rank's points sit at a junction (a node split into three copies or more,
+    in the whole mesh) and which lie on loops of pairs of every set (:func:`looped_pairs`)."""
 
     points: InterfacePoints
     total: int
@@ -42,6 +42,7 @@ class CohesiveShare:
     owner_counts: np.ndarray | None = None  # rigid-plastic: the set's points on each rank
     owners: np.ndarray | None = None  # rigid-plastic, every rank with the whole mesh: each point's rank
     junction: np.ndarray | None = None
+    on_loops: np.ndarray | None = None  # rigid-plastic: which of the rank's points lie on loops of pairs
 
 
 @dataclass
@@ -83,13 +84,18 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
             root = tied_nodes(mesh)
             junction = np.bincount(root, minlength=mesh.n_nodes)[root[points.minus]] >= 3
         sets.append((section, cells, points, where, junction))
+    loops = None  # rigid-plastic surfaces: the pairs of every set on loops round a node (run.log warns)
+    if any(section.form is CohesiveForm.rp for section, *_ in sets):
+        looped = looped_pairs(np.concatenate([p.minus for _, _, p, _, _ in sets]),
+                              np.concatenate([p.plus for _, _, p, _, _ in sets]), mesh.n_nodes)
+        loops = np.split(looped, np.cumsum([p.n for _, _, p, _, _ in sets])[:-1])
     whole_mesh = case.embedded is not None  # crack paths tracked over every rank's cells
     cutter = Cutter(mesh)
-    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh)
+    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh, loops)
 
 
 def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list, node_group: np.ndarray,
-            monitors: list[Monitor], n_ranks: int, whole_mesh: bool) -> Iterator[Share]:
+            monitors: list[Monitor], n_ranks: int, whole_mesh: bool, loops: list | None) -> Iterator[Share]:
     """Each rank's share in turn (see :func:`cut_shares`)."""
     blocks = part.node_blocks()
     for r in range(n_ranks):
@@ -102,12 +108,13 @@ def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list,
                                  np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
         ids = piece.place.nodes  # type: ignore[union-attr]
         coh = []
-        for section, _, p, where, junction in sets:
+        for k, (section, _, p, where, junction) in enumerate(sets):
             rp = section.form is CohesiveForm.rp
             coh.append(CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
                                      np.bincount(where, minlength=n_ranks) if rp else None,
                                      where if rp and whole_mesh else None,
-                                     junction[where == r] if junction is not None else None))
+                                     junction[where == r] if junction is not None else None,
+                                     loops[k][where == r] if loops is not None else None))
         place = piece.place
         assert place is not None
         yield Share(case, piece, part.of_piece(r, place.cells, place.interfaces, ids, blocks), coh,

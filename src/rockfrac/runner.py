@@ -24,7 +24,7 @@ from rockfrac.elements.cse_groups import CohesiveRP
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.errors import CaseError, RunStopped
 from rockfrac.files import prepare_output
-from rockfrac.mesh.interfaces import looped_pairs
+from rockfrac.mesh.interfaces import looped_pairs_by_set
 from rockfrac.output import checkpoint
 from rockfrac.output.csvout import POINT_COLUMNS, POINT_COLUMNS_3D, read_csv, rows_digest
 from rockfrac.output.history import History, axial_columns, crack_columns, step_columns
@@ -74,9 +74,8 @@ def case_warnings(built: Built) -> list[str]:
     model = built.model
     loops: list[np.ndarray | None] | None = built.loops  # an MPI rank's: found by rank 0 on the whole mesh
     if loops is None and any(isinstance(g, CohesiveRP) for g in built.cohesives):  # the pairs of every set
-        on_loops = looped_pairs(np.concatenate([g.points.minus for g in built.cohesives]),
-                                np.concatenate([g.points.plus for g in built.cohesives]), built.mesh.n_nodes)
-        loops = list(np.split(on_loops, np.cumsum([g.points.n for g in built.cohesives])[:-1]))
+        loops = list(looped_pairs_by_set([g.points.minus for g in built.cohesives],
+                                         [g.points.plus for g in built.cohesives], built.mesh.n_nodes))
     for j, (coh, group) in enumerate(zip(built.case.cohesive_sets, built.cohesives)):
         if isinstance(group, CohesiveRP):
             mask = loops[j] if loops is not None else None

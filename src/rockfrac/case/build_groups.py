@@ -28,7 +28,7 @@ from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
 from rockfrac.laws.registry import law_class
 from rockfrac.laws.traction_law import TractionLaw
 from rockfrac.mesh import Mesh
-from rockfrac.mesh.interfaces import tied_nodes
+from rockfrac.mesh.interfaces import at_junctions
 
 AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
 
@@ -109,8 +109,7 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
         return [CohesiveEP(points, law, name=name, integration=section.integration,
                            viscosity=section.viscosity or 0.0)]
     if junction is None:
-        root = tied_nodes(mesh)
-        junction = np.bincount(root, minlength=mesh.n_nodes)[root[points.minus]] >= 3
+        junction = at_junctions(mesh, points.minus)
     return [CohesiveRP(points, law, section.augmentation, junction=junction, name=name)]
 
 

@@ -21,7 +21,7 @@ from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.schema import Case
 from rockfrac.elements.interface_points import InterfacePoints, interface_points, interface_points_3d
-from rockfrac.mesh.interfaces import looped_pairs, tied_nodes
+from rockfrac.mesh.interfaces import at_junctions, looped_pairs_by_set, tied_nodes
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
 from rockfrac.mesh.piece import Cutter
@@ -34,7 +34,7 @@ class CohesiveShare:
     group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
     points each rank has (their multipliers' blocks; with the whole mesh on every rank, each point's
     rank), which of the rank's points sit at a junction (a node split into three copies or more,
-    in the whole mesh) and which lie on loops of pairs of every set (:func:`looped_pairs`)."""
+    in the whole mesh) and which lie on loops of pairs of every set (:func:`looped_pairs_by_set`)."""
 
     points: InterfacePoints
     total: int
@@ -75,20 +75,18 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
         node_group[mesh.cells[cells].ravel()] = k
     check_boundary_groups(case, mesh, path)
     monitors = resolve_monitors(case, mesh, path)
+    rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
+    root = tied_nodes(mesh) if rigid else None
     sets = []
     for section, cells in zip(case.cohesive_sets, set_cells):
         points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
-        junction = None
-        if section.form is CohesiveForm.rp:
-            root = tied_nodes(mesh)
-            junction = np.bincount(root, minlength=mesh.n_nodes)[root[points.minus]] >= 3
+        junction = at_junctions(mesh, points.minus, root) if section.form is CohesiveForm.rp else None
         sets.append((section, cells, points, where, junction))
     loops = None  # rigid-plastic surfaces: the pairs of every set on loops round a node (run.log warns)
-    if any(section.form is CohesiveForm.rp for section, *_ in sets):
-        looped = looped_pairs(np.concatenate([p.minus for _, _, p, _, _ in sets]),
-                              np.concatenate([p.plus for _, _, p, _, _ in sets]), mesh.n_nodes)
-        loops = np.split(looped, np.cumsum([p.n for _, _, p, _, _ in sets])[:-1])
+    if rigid:
+        loops = looped_pairs_by_set([p.minus for _, _, p, _, _ in sets], [p.plus for _, _, p, _, _ in sets],
+                                    mesh.n_nodes)
     whole_mesh = case.embedded is not None  # crack paths tracked over every rank's cells
     cutter = Cutter(mesh)
     return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh, loops)

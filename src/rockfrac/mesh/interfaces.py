@@ -347,6 +347,20 @@ def tied_nodes(mesh: Mesh) -> np.ndarray:
     return rep[labels]
 
 
+def at_junctions(mesh: Mesh, nodes: np.ndarray, root: np.ndarray | None = None) -> np.ndarray:
+    """Whether each node is a copy of a node split into three copies or more (surfaces meeting at a
+    junction); ``root``: :func:`tied_nodes` of the mesh, if made already."""
+    root = tied_nodes(mesh) if root is None else root
+    return np.bincount(root, minlength=mesh.n_nodes)[root[nodes]] >= 3
+
+
+def looped_pairs_by_set(minus: list[np.ndarray], plus: list[np.ndarray], n_nodes: int) -> list[np.ndarray]:
+    """:func:`looped_pairs` of the pairs of several sets together (a loop may run through several
+    sets), split back into one mask per set."""
+    looped = looped_pairs(np.concatenate(minus), np.concatenate(plus), n_nodes)
+    return list(np.split(looped, np.cumsum([m.shape[0] for m in minus])[:-1]))
+
+
 def looped_pairs(minus: np.ndarray, plus: np.ndarray, n_nodes: int | None = None) -> np.ndarray:
     """For each node pair (an interface point: copies minus, plus of one node), whether it lies on a
     loop of pairs: the copies of a node inside the mesh split on every edge round it, each tied to

@@ -37,10 +37,10 @@ def _pair_index(minus: np.ndarray, plus: np.ndarray, n: int, qm: np.ndarray, qp:
     return order[pos], keys[order][pos] == q
 
 
-def _interface_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.ndarray]:
+def _interface_fields(built, u: np.ndarray, on_ranks: bool = False) -> dict[str, np.ndarray]:
     """Per interface cell: the mean of its node-pair points (jump, traction, strengths, state), the
-    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); of a serial model, or (whole =
-    False) of an MPI rank's own interface cells of its piece, each rank's sums over its points sent
+    vectors in the local frame ((t, n) in 2D, (t1, t2, n) in 3D); of a serial model, or (on_ranks)
+    of an MPI rank's own interface cells of its piece, each rank's sums over its points sent
     to the cells' owners (the others' entries left empty)."""
     mesh = built.mesh
     cells, n = mesh.interfaces, mesh.n_nodes
@@ -70,7 +70,7 @@ def _interface_fields(built, u: np.ndarray, whole: bool = True) -> dict[str, np.
                 sums[name][hit] += v[idx[hit]]
             count[hit] += 1
             state[hit] = np.maximum(state[hit], st[idx[hit]])
-    if not whole:
+    if on_ranks:
         sums, count, state, written = _to_owners(built, sums, count, state, written)
     for name, w in written.items():  # NaN where the cell's law has no such quantity
         sums[name][w == 0] = np.nan
@@ -206,7 +206,7 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     seg = np.flatnonzero(part.cell_part[seg_hosts] == rank) if seg_hosts is not None else np.zeros(0, np.int64)
     tri = np.flatnonzero(part.cell_part[tri_hosts] == rank) if tri_hosts is not None else np.zeros(0, np.int64)
     bulk = _bulk_fields(built, u, own)
-    inter = ({name: v[own_if] for name, v in _interface_fields(built, u, whole=False).items()}
+    inter = ({name: v[own_if] for name, v in _interface_fields(built, u, on_ranks=True).items()}
              if place.n_interfaces else None)  # alike on every rank (a collective call)
     corners = (3 * tri[:, None] + np.arange(3)).ravel()
     piece = step_fields(

@@ -145,7 +145,8 @@ class History:
         self.dim = mesh.dim
         self.n_u = model.n_u  # the displacement dofs of the model's vectors (an MPI rank's local ones)
         # the node groups (of the whole mesh: a rank's piece holds some of their nodes) and their sizes
-        self.sizes = mesh.place.node_set_sizes if mesh.place is not None else {n: len(v) for n, v in mesh.node_sets.items()}
+        self.sizes = (mesh.place.node_set_sizes if mesh.place is not None
+                      else {n: len(v) for n, v in mesh.node_sets.items()})
         self.groups = {name: np.asarray(ids) for name, ids in mesh.node_sets.items() if self.sizes[name]}
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]

@@ -23,7 +23,8 @@ residual and tangent, with the ranks' sums and the matrix's insertion), solve (f
 solves), Newton iterations, the largest resident memory of a rank. Machine and load are recorded
 with every row; results go to ``benchmarks/results/mpi_scaling.json`` and the "MPI scaling" table
 of ``benchmarks/README.md``. ``--quick``: small sizes, prints only. ``--held``: set-up only, on 2
-ranks, the arrays each rank's mesh, partition and layout hold (a rank's piece of the mesh).
+ranks, the arrays each rank's mesh, partition and layout hold (a rank's piece of the mesh), for 2d,
+3d and **embedded** (2d with tracked embedded cracks: the cells its crack-path registry sees).
 """
 
 from __future__ import annotations
@@ -56,6 +57,16 @@ def case_2d(dofs: float) -> dict:
                                     "displacement": {"bottom": {"y": 0.0}, "bottom_left": {"x": 0.0},
                                                      "top": {"y": -2e-3}}}],
             "solver": {"linear": "petsc-gamg"}, "output": OUT}
+
+
+def case_embedded(dofs: float) -> dict:
+    """case_2d with embedded strong discontinuities in its Drucker-Prager cells, tracked ("local"),
+    softening as the band example's (set-up only: ``--held``)."""
+    case = case_2d(dofs)
+    case["embedded"] = {"c_p": "eq28", "c_r": 0.0, "phi_p": 0.5236, "phi_r": 0.0, "psi_p": 0.087, "alpha_c": 5e3,
+                        "alpha_phi": 5e3, "alpha_psi": 5e3, "tracking": "local"}
+    case["solver"] = {"linear": "petsc"}
+    return case
 
 
 def case_cohesive(dofs: float) -> dict:
@@ -228,11 +239,17 @@ def held_child(problem: str, dofs: float, out: Path) -> None:
 
     comm = MPI.COMM_WORLD
     folder = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
-    case = case_2d(dofs) if problem == "2d" else case_3d(dofs, folder) if comm.rank == 0 else None
+    case = None
+    if comm.rank == 0:
+        case = case_2d(dofs) if problem == "2d" else case_embedded(dofs) if problem == "embedded" else case_3d(dofs, folder)
     built = build_distributed(parse_case(comm.bcast(case, root=0), problem), comm)
     seen: set = set()
     layout = built.model.layout  # type: ignore[attr-defined]
-    mine = {"rank": comm.rank, "mesh_mib": _nbytes(built.mesh, seen) / 2**20,
+    paths = {id(g.paths): g.paths for g in built.embeddeds}.values()  # the crack-path registry
+    mine = {"rank": comm.rank, "piece_cells": built.mesh.cells.shape[0],
+            "crack_cells_seen": sum(p.owner.shape[0] for p in paths),
+            "crack_neighbour_lists": sum(len(p.nbr) for p in paths),
+            "mesh_mib": _nbytes(built.mesh, seen) / 2**20,
             "partition_mib": _nbytes(built.partition, seen) / 2**20,
             "layout_mib": _nbytes({k: v for k, v in vars(layout).items() if isinstance(v, np.ndarray)}, seen) / 2**20,
             "peak_after_setup_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
@@ -250,7 +267,7 @@ def main() -> None:
     ap.add_argument("--problems", nargs="+", default=["2d", "3d", "cohesive", "joints"])
     ap.add_argument("--timeout", type=float, default=3600.0)
     ap.add_argument("--held", action="store_true", help="2 ranks, set-up only: the arrays of each rank's "
-                    "mesh, partition and layout, and its peak after set-up (2d, 3d)")
+                    "mesh, partition and layout, and its peak after set-up (2d, 3d, embedded)")
     ap.add_argument("--held-child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
     args = ap.parse_args()
     if args.child:
@@ -261,7 +278,7 @@ def main() -> None:
         return
     if args.held:
         env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-        for problem in [p for p in args.problems if p in ("2d", "3d")]:
+        for problem in [p for p in args.problems if p in ("2d", "3d", "embedded")]:
             out = Path(tempfile.mkdtemp()) / "held.json"
             subprocess.run([shutil.which("mpiexec") or "mpiexec", "-n", "2", sys.executable, str(Path(__file__).resolve()),
                             "--held-child", problem, str(1e6 / 50 if args.quick else 1e6), str(out)], env=env,

@@ -89,6 +89,10 @@ def test_sliding_rp_joints_solved_by_gmres_amg_match_the_direct_solve(tmp_path):
         histories[linear] = r.history
     direct, krylov = histories["superlu"], histories["gmres-amg"]
     assert direct["n_plastic"][-1] > 0  # the joint slides
-    np.testing.assert_array_equal(direct["newton_iterations"], krylov["newton_iterations"])
+    # the same Newton iterations, but for one where a step ends at round-off: an elastic drag step
+    # whose first correction lands within the tolerance (SciPy 1.17's SuperLU: residual 2e-15) or
+    # just above it (GMRES: 7e-14), then takes one more
+    off = np.abs(direct["newton_iterations"] - krylov["newton_iterations"])
+    assert off.max() <= 1 and np.count_nonzero(off) <= 1, (direct["newton_iterations"], krylov["newton_iterations"])
     for q in ("R_top_x", "u_top_z"):
         np.testing.assert_allclose(krylov[q], direct[q], rtol=0, atol=1e-8 * np.abs(direct[q]).max())

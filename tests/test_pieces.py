@@ -154,3 +154,55 @@ def test_the_pieces_of_a_step_join_into_the_whole_grid():
     for name, blocks in fields.cell_data.items():
         for a, b in zip(joined.cell_data[name], blocks):
             np.testing.assert_array_equal(a, b)
+
+
+def _band(kinematics: str = "elemental", element: str = "quad4") -> dict:
+    """An embedded band on 12 x 24 cells with a weak seed (tests/test_crack_tracking.py)."""
+    from test_crack_tracking import H, W, band_case
+
+    mesh = {"kind": "block", "element": element, "width": W, "height": H, "nx": 12, "ny": 24,
+            "inclusion": [0.0, 0.0067, 0.0034, 0.0167], **({"thickness": 0.01, "nz": 1} if element == "hex8" else {})}
+    case = band_case(mesh, {"tracking": "local"})
+    if kinematics == "nodal":
+        case["embedded"].update(kinematics="nodal", kn=1e10, kt=1e10)
+    return case
+
+
+def _side_neighbours(cells: np.ndarray, dim: int) -> list[set[int]]:
+    """Each cell's neighbours across its sides, by brute force (a dict of sorted sides)."""
+    from rockfrac.mesh.topology import cell_sides
+
+    sides = cell_sides(cells, dim).reshape(cells.shape[0], -1, 2 if dim == 2 else 4)
+    by_side: dict[tuple, list[int]] = {}
+    for c in range(cells.shape[0]):
+        for side in sides[c].tolist():
+            by_side.setdefault(tuple(sorted(side)), []).append(c)
+    out: list[set[int]] = [set() for _ in range(cells.shape[0])]
+    for held in by_side.values():
+        for c in held:
+            out[c].update(o for o in held if o != c)
+    return out
+
+
+@pytest.mark.parametrize("n, element", [(2, "quad4"), (3, "quad4"), (2, "hex8")])
+def test_an_embedded_cases_piece_is_its_own_cells_and_their_side_neighbours(n, element):
+    """With embedded cracks a rank's piece holds its own cells and every cell across one of their
+    sides (edges; faces of hexahedra), no other, and each cell's place in its material's serial
+    order; nodal cracks still give every rank the whole mesh."""
+    case = resolve(parse_case(_band(element=element), "band"), "band")
+    part_of = {}
+    whole, cut = cut_shares(case, "band", n, lambda mesh: part_of.setdefault("p", partition(mesh, n)))
+    neighbours = _side_neighbours(whole.cells, whole.dim)
+    serial = np.zeros(whole.cells.shape[0], dtype=np.int64)
+    for region in ("bulk", "weak"):
+        serial[whole.regions[region]] = np.arange(whole.regions[region].size)
+    part = part_of["p"]
+    for r, share in enumerate(cut):
+        own = set(np.flatnonzero(part.cell_part == r).tolist())
+        expected = own | {o for c in own for o in neighbours[c]}
+        assert set(share.mesh.place.cells.tolist()) == expected
+        assert len(expected) < 0.75 * whole.cells.shape[0]
+        np.testing.assert_array_equal(share.cell_serial, serial[share.mesh.place.cells])
+    nodal = resolve(parse_case(_band("nodal"), "band"), "band")
+    whole, cut = cut_shares(nodal, "band", n, lambda mesh: partition(mesh, n))
+    assert all(s.mesh.cells.shape[0] == whole.cells.shape[0] for s in cut)

@@ -48,6 +48,12 @@ def history(built, comm) -> dict:
     log: list[str] = []
     result = run_distributed(built, on_step, log.append)
     out = {k: np.array(v) for k, v in rows.items()}
+    # each rank's piece of the mesh, against the whole, and the cells its crack-path registry sees
+    paths = {id(g.paths): g.paths for g in built.embeddeds}
+    seen = sum(p.ids.size for p in paths.values())
+    piece = comm.gather((built.mesh.cells.shape[0], built.mesh.place.n_cells, seen), root=0)
+    if comm.rank == 0:
+        out["piece_cells"], out["whole_cells"], out["seen_cells"] = (np.array(v) for v in zip(*piece))
     out["message"] = np.array(result.message)
     out["solver_line"] = np.array(log[0] if log else "")
     return out

@@ -178,7 +178,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     owned = part.cell_part == rank if part is not None else None
     try:
         bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None,
-                                 rank)
+                                 rank, share.cell_serial if share is not None else None)
     except CaseError:
         raise
     except ValueError as err:

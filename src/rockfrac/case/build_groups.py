@@ -121,10 +121,11 @@ def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
-                     exchange: Exchange | None = None, rank: int = 0) -> list:
+                     exchange: Exchange | None = None, rank: int = 0, cell_serial: np.ndarray | None = None) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
     ``owned`` (a mask over the cells): only these cells (one MPI rank's, ``rank``), ``exchange``: the
-    ranks'."""
+    ranks'; ``cell_serial``: on a piece of the mesh, each cell's index among its material's cells in
+    the whole mesh (default: the mesh is whole)."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
@@ -141,11 +142,13 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
         ede_regions = set(emb.regions)
     groups = []
-    full: dict[int, np.ndarray] = {}  # an EDE group's cells on every rank
+    full: dict[int, tuple] = {}  # an EDE group's cells this rank sees: (whole mesh ids, connectivity)
+    whole = mesh.place.cells if mesh.place is not None else np.arange(mesh.cells.shape[0])
     for section, cells, region in material_cells(case, mesh, path):
         every = cells
+        serial = cell_serial[every] if cell_serial is not None else np.arange(every.size)
         if owned is not None:
-            cells = cells[owned[cells]]
+            serial, cells = serial[owned[cells]], cells[owned[cells]]
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
         if emb is not None and dp and (ede_regions is None or region in ede_regions):
@@ -160,26 +163,26 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
             else:
                 ede = EmbeddedDruckerPrager(mesh.nodes, sub, ref, drucker_prager_of(section), embedded_law(emb),
                                             **kinds)
-            if owned is not None:
-                ede.serial_index = np.flatnonzero(owned[every])  # its cells' places among the whole group's
-            full[id(ede)] = every
+            ede.serial_index = serial  # its cells' places among the whole group's
+            full[id(ede)] = (whole[every], mesh.cells[every])
             g: SolidGroup = ede
         elif dp:
             g = DruckerPragerSolid(mesh.nodes, sub, ref, drucker_prager_of(section), region=region, cell_ids=cells)
         else:
             g = ElasticSolid(mesh.nodes, sub, ref, section.E, section.nu, region=region, cell_ids=cells)
+        g.whole_ids = whole[cells]
         groups.append(g)
 
     # one registry for the 2D groups, one for those of a general 3D body (crack paths cross regions)
     embedded = [g for g in groups if isinstance(g, EmbeddedDruckerPrager) and (g.dim == 2 or general)]
-    share_crack_paths(embedded, mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]]) for g in embedded], exchange)
+    share_crack_paths(embedded, mesh.nodes, [full[id(g)] for g in embedded], exchange)
     for g in groups:  # a plane-strain hex8 group: a registry of its own (its onsets' search over the ranks)
         if isinstance(g, EmbeddedDruckerPrager) and g.dim != 2 and not general:
-            share_crack_paths([g], mesh.nodes, [(full[id(g)], mesh.cells[full[id(g)]])], exchange)
+            share_crack_paths([g], mesh.nodes, [full[id(g)]], exchange)
     nodal = [g for g in groups if isinstance(g, NodalEmbeddedDruckerPrager)]
     if nodal:  # one enrichment for every nodal group (a crack crosses regions), its unknowns owned by the first
         registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim,
-                                      every_cell=[mesh.cells[full[id(g)]] for g in nodal],
+                                      every_cell=[full[id(g)][1] for g in nodal],
                                       exchange=exchange if owned is not None else None, rank=rank)
         for k, g in enumerate(nodal):
             g.attach(registry, first=k == 0)

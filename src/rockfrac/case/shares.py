@@ -4,8 +4,10 @@ cut from it: the rank's piece of the mesh (:mod:`rockfrac.mesh.piece`), its shar
 partition, its cohesive points and its monitors on the piece's nodes.
 
 A rank's piece is its own cells and interface cells, and the interface cells its cohesive points
-lie on (a point's weight and normal come from every cell of its node pair). A case with embedded
-cracks gives every rank the whole mesh: their paths are tracked over every rank's cells.
+lie on (a point's weight and normal come from every cell of its node pair). With embedded cracks it
+also holds every cell that shares a side with one of its own (its halo): a crack grows from a cell
+into its neighbours (rockfrac.elements.ede_paths.CrackPaths). Nodal embedded cracks give every rank
+the whole mesh: their enrichment registry numbers every node of every rank's cells.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from rockfrac.mesh.interfaces import at_junctions, looped_pairs_by_set, tied_nod
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
 from rockfrac.mesh.piece import Cutter
+from rockfrac.mesh.topology import cell_sides, same_nodes
 from rockfrac.output.history import Monitor
 
 
@@ -57,6 +60,7 @@ class Share:
     cohesive: list[CohesiveShare]
     monitors: list[Monitor]
     whole: Mesh | None = None
+    cell_serial: np.ndarray | None = None  # each piece cell's index among its material's cells in the whole mesh
 
 
 def _on_piece(points: InterfacePoints, ids: np.ndarray) -> InterfacePoints:
@@ -71,8 +75,10 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     part: Partition = split(mesh)
     node_group = np.full(mesh.n_nodes, -1)  # the last bulk group (material) whose cells hold each node
+    serial = np.zeros(mesh.cells.shape[0], dtype=np.int64)  # each cell's index among its material's
     for k, (_, cells, _) in enumerate(material_cells(case, mesh, path)):  # every cell one material
         node_group[mesh.cells[cells].ravel()] = k
+        serial[cells] = np.arange(cells.size)
     check_boundary_groups(case, mesh, path)
     monitors = resolve_monitors(case, mesh, path)
     rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
@@ -87,13 +93,31 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     if rigid:
         loops = looped_pairs_by_set([p.minus for _, _, p, _, _ in sets], [p.plus for _, _, p, _, _ in sets],
                                     mesh.n_nodes)
-    whole_mesh = case.embedded is not None  # crack paths tracked over every rank's cells
+    emb = case.embedded
+    whole_mesh = emb is not None and emb.kinematics == "nodal"  # the enrichment numbers every rank's nodes
+    sides = side_ids(mesh) if emb is not None and not whole_mesh else None  # a halo of cells by their sides
     cutter = Cutter(mesh)
-    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh, loops)
+    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh, loops, sides,
+                         serial)
+
+
+def side_ids(mesh: Mesh) -> np.ndarray:
+    """An id per side of each cell (n_cells, sides per cell), shared by the cells on both sides of it."""
+    n = mesh.cells.shape[0]
+    return same_nodes(cell_sides(mesh.cells, mesh.dim)).reshape(n, -1)
+
+
+def halo(sides: np.ndarray, own: np.ndarray) -> np.ndarray:
+    """The cells that share a side with one of the ``own`` cells (a mask over the cells), own cells
+    excluded (``sides``: :func:`side_ids`)."""
+    touched = np.zeros(int(sides.max(initial=-1)) + 1, dtype=bool)
+    touched[sides[own].ravel()] = True
+    return np.flatnonzero(touched[sides].any(axis=1) & ~own)
 
 
 def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list, node_group: np.ndarray,
-            monitors: list[Monitor], n_ranks: int, whole_mesh: bool, loops: list | None) -> Iterator[Share]:
+            monitors: list[Monitor], n_ranks: int, whole_mesh: bool, loops: list | None, sides: np.ndarray | None,
+            serial: np.ndarray) -> Iterator[Share]:
     """Each rank's share in turn (see :func:`cut_shares`)."""
     blocks = part.node_blocks()
     for r in range(n_ranks):
@@ -102,7 +126,9 @@ def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list,
         else:
             held = [cells[((where[p.segment_points] == r) & (p.segment_points >= 0)).any(axis=1)]
                     for _, cells, p, where, _ in sets]
-            piece = cutter.piece(np.flatnonzero(part.cell_part == r),
+            own = part.cell_part == r
+            near = halo(sides, own) if sides is not None else np.zeros(0, dtype=np.int64)
+            piece = cutter.piece(np.concatenate([np.flatnonzero(own), near]),
                                  np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
         ids = piece.place.nodes  # type: ignore[union-attr]
         coh = []
@@ -116,4 +142,4 @@ def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list,
         place = piece.place
         assert place is not None
         yield Share(case, piece, part.of_piece(r, place.cells, place.interfaces, ids, blocks), coh,
-                    [m.on_piece(ids) for m in monitors])
+                    [m.on_piece(ids) for m in monitors], cell_serial=serial[place.cells])

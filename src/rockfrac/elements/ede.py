@@ -114,7 +114,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             if self.tracking == "nonlocal" and tips.size:  # ...or the nonlocal stress at its tip point,
                 extra = sigma[:, :1].copy()  # as one more point of the cell
                 for e in tips:
-                    stress = near.get(int(self.cell_ids[e]))
+                    stress = near.get(self._global(int(e)))
                     if stress is not None and np.all(np.isfinite(stress)):
                         extra[e, 0] = stress
                 sigma = np.concatenate([sigma, extra], axis=1)
@@ -164,15 +164,10 @@ class EmbeddedDruckerPrager(EmbeddedCells):
 
     def _tip_stresses(self) -> dict[int, np.ndarray]:
         """The nonlocal stress at the tip point of every crack-tip cell of the group (any rank's, by
-        global id; a collective call, one per tip in the serial order)."""
+        whole mesh id; a collective call, one per tip in the serial order)."""
         paths = self.paths
-        every = sorted(paths.tip_cells_global(paths.groups.index(self)), key=lambda c: paths.serial[c])
-        out = {}
-        for gcell in every:
-            tip = paths.tip(gcell)
-            if tip is not None:
-                out[gcell] = paths.nonlocal_stress(tip[0], self._nonlocal_length())
-        return out
+        return {gcell: paths.nonlocal_stress(point, self._nonlocal_length())
+                for gcell, point in paths.tips_everywhere(self)}
 
     def _global_lowest(self, screened: np.ndarray, e_of: np.ndarray, qi: np.ndarray) -> int | None:
         """Index in e_of of the group's lowest screened point over every MPI rank, if this rank holds
@@ -212,33 +207,33 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             for ratio, e in ready:
                 self._open(e, ratio, where[e][2])
             return best
-        # the same decisions on every rank: the cells ready on any rank, in the serial order
-        ids, serial = self.cell_ids, paths.serial
-        mine = [(ratio, int(serial[ids[e]]), int(ids[e]), bool((self.state[e, :, S_MODE] == MODE_CONE).any()),
-                 where[e][2]) for ratio, e in ready]
+        # the same decisions on every rank: the cells ready on any rank, in the serial order; whether
+        # a cell was at a crack tip before this step's cuts, as its owner saw it
+        mine = [(ratio, int(self.serial_index[e]), self._global(e),
+                 bool((self.state[e, :, S_MODE] == MODE_CONE).any()), where[e][2],
+                 paths.tip(self._global(e)) is not None) for ratio, e in ready]
         pending = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:2])
         any_ready = bool(pending)  # on any rank (the scan below is collective)
         k = paths.groups.index(self)
-        tips = paths.tip_cells_global(k)
         self.deferred[:] = False
         progress = True
         while pending and progress:  # a newly cut cell may give the next one its tip...
             progress = False
             for cand in list(pending):
-                ratio, _, gcell, plastic, loc = cand
-                tip = paths.tip(gcell)
-                if tip is not None and gcell not in tips and not plastic:
+                ratio, _, gcell, plastic, loc, was_tip = cand
+                tip, beside = paths.at_owner(gcell, lambda c: (paths.tip(c), bool(paths.cut_neighbours(c))))
+                if tip is not None and not was_tip and not plastic:
                     continue  # ...but an elastic cell only from a tip that existed before this step
-                if tip is None and (paths.cut_neighbours(gcell) or paths.cracks >= self.max_cracks):
+                if tip is None and (beside or paths.cracks >= self.max_cracks):
                     continue  # beside a crack but not at its tip, or no new crack allowed: wait
                 if tip is None:
                     paths.cracks += 1
                 normal = None  # "nonlocal": the tip's nonlocal stress decides (a collective call)
                 if tip is not None and self.tracking == "nonlocal":
-                    normal = paths.nonlocal_normal(gcell, tip[0], tip[1], self._nonlocal_length())
-                group, local = paths.owner[gcell]
-                if group == k:
-                    self._open(int(local), ratio, loc, tip, normal)
+                    normal = paths.nonlocal_normal(self, tip[0], tip[1], self._nonlocal_length())
+                local = paths.local(gcell, k)
+                if local >= 0:
+                    self._open(local, ratio, loc, tip, normal)
                 paths.announce(gcell)
                 self.cut_announced(gcell)
                 pending.remove(cand)
@@ -247,7 +242,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             return best
         # the indicator after the cuts, over the cells that may open next (the new tips): an onset in
         # the next step is then located as an event
-        self.deferred[[int(paths.owner[c[2]][1]) for c in pending if paths.owner[c[2]][0] == k]] = True
+        self.deferred[[paths.local(c[2], k) for c in pending if paths.local(c[2], k) >= 0]] = True
         paths.current()
         return self._scan(self.state, self.sigma, self._eligible(), exact_cells=False)[0]
 
@@ -265,7 +260,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         return self._paths
 
     def _global(self, e: int) -> int:
-        return int(self.cell_ids[e])
+        """Cell e's index in the whole mesh (the crack-path registry's name for it)."""
+        return int(self.whole_ids[e])
 
     def _tip_cells(self) -> np.ndarray:
         """This group's uncut cells where a cut cell's surface ends on their shared edge (crack tips)."""

@@ -274,7 +274,7 @@ class EmbeddedCells(DruckerPragerSolid):
         """:meth:`records` with the state named, the mesh's cell numbers and the region as the set."""
         rec = self.records()
         rec["state"] = np.where(rec["mode"] == 1.0, "plastic", "constrained")
-        rec["cell"] = self.cell_ids[rec["cell"]]
+        rec["cell"] = self.whole_ids[rec["cell"]]
         rec["set"] = np.full(rec["cell"].shape[0], self.region)
         return rec
 

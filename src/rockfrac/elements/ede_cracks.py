@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rockfrac.elements.ede_paths import CrackPaths
+from rockfrac.elements.ede_paths import CrackPaths, Exchange
 
 LENGTH_TOL = 1e-9  # relative: chords shorter than this x the cell size are not cuts
 NODE_TOL = 1e-7  # relative: a segment this close to a node (x the cell size) is moved off it
@@ -53,12 +53,13 @@ def clip_to_cell(xe: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[float, f
     return s0, s1
 
 
-def _off_the_nodes(a: np.ndarray, b: np.ndarray, groups: list[tuple[np.ndarray, np.ndarray]]
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def _off_the_nodes(a: np.ndarray, b: np.ndarray, groups: list[tuple[np.ndarray, np.ndarray]],
+                   exchange: Exchange) -> tuple[np.ndarray, np.ndarray]:
     """The segment a-b, moved off the nodes (module doc) if it passes within NODE_TOL cell sizes of
-    a node of any group's cells ((corners (n_el, k, 2), sizes (n_el,)) per group): every group then
-    cuts its cells with the same line, so that the crack's traces on the sides between two regions
-    agree and its pieces join there."""
+    a node of any group's cells ((corners (n_el, k, 2), sizes (n_el,)) per group; this MPI rank's,
+    the test made over every rank's: a collective call): every group then cuts its cells with the
+    same line, so that the crack's traces on the sides between two regions agree and its pieces
+    join there."""
     length = float(np.linalg.norm(b - a))
     t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
     close, smallest = False, np.inf
@@ -68,9 +69,10 @@ def _off_the_nodes(a: np.ndarray, b: np.ndarray, groups: list[tuple[np.ndarray, 
         if span.any():
             close |= bool(np.min(np.abs(side[span]) / size[span, None]) < NODE_TOL)
             smallest = min(smallest, float(size[span].min()))
-    if not close:
+    every = exchange.allgather((close, smallest))
+    if not any(c for c, _ in every):
         return a, b
-    shift = 2.0 * NODE_TOL * smallest
+    shift = 2.0 * NODE_TOL * min(size for _, size in every)
     return a + shift * n, b + shift * n
 
 
@@ -78,25 +80,18 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
     """Localize every EDE cell the polyline ``points`` (n, 2) [m] crosses (module doc); returns the
     number of cells cut and the fraction of the polyline's length that lies in EDE cells.
 
-    On several MPI ranks (a collective call) the cuts are found on each group's cells of every rank
-    (their sizes gathered), so that every rank finds the serial ones; each rank cuts its own cells,
-    and the crack-path table is filled from every rank's."""
+    On several MPI ranks (a collective call) each rank cuts its own cells; the cuts are announced
+    on every rank (:meth:`EmbeddedDruckerPrager.cut_announced`) and counted in the serial run's
+    order (group, first polyline segment, cell), and the crack-path table is filled from every
+    rank's."""
     pts = np.asarray(points, dtype=float)
     total = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
-    covered = 0.0
-    cut = 0
-    cells = []  # per group: its cells' corners (every rank's), sizes, and this rank's index of each
-    for g, conn in zip(paths.groups, paths.full_conn):
-        size = np.zeros(conn.shape[0])
-        for index, own in paths.exchange.allgather((g.serial_index, np.sqrt(g.wdet.sum(axis=1)))):
-            size[index] = own
-        local = np.full(conn.shape[0], -1)
-        local[g.serial_index] = np.arange(g.serial_index.size)
-        cells.append((paths.nodes[conn][..., :2], size, local))
-    segments = [_off_the_nodes(a, b, [(xe, size) for xe, size, _ in cells]) for a, b in zip(pts[:-1], pts[1:])]
-    for g, ids, (xe, size, local) in zip(paths.groups, paths.full_ids, cells):
-        chords: dict[int, list[np.ndarray]] = {}
-        for a, b in segments:
+    cells = [(g.x[..., :2], np.sqrt(g.wdet.sum(axis=1))) for g in paths.groups]  # this rank's, per group
+    segments = [_off_the_nodes(a, b, cells, paths.exchange) for a, b in zip(pts[:-1], pts[1:])]
+    mine = []  # this rank's cuts: (group, first segment, serial index, whole mesh id, length in the cell)
+    for k, (g, (xe, size)) in enumerate(zip(paths.groups, cells)):
+        chords: dict[int, tuple[int, list[np.ndarray]]] = {}
+        for j, (a, b) in enumerate(segments):
             length = float(np.linalg.norm(b - a))
             t, n = (b - a) / length, np.array([a[1] - b[1], b[0] - a[0]]) / length
             side, along = (xe - a) @ n, (xe - a) @ t  # (n_el, k): across and along the segment
@@ -106,8 +101,8 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
                 s = clip_to_cell(xe[cell], a, b)
                 if s is None or (s[1] - s[0]) * np.linalg.norm(b - a) <= LENGTH_TOL * size[cell]:
                     continue
-                chords.setdefault(cell, []).append(np.array([a + s[0] * (b - a), a + s[1] * (b - a), a, b]))
-        for e, pieces in chords.items():
+                chords.setdefault(cell, (j, []))[1].append(np.array([a + s[0] * (b - a), a + s[1] * (b - a), a, b]))
+        for e, (j, pieces) in chords.items():
             if len(pieces) == 1:  # the line of its polyline segment, through the segment's start: every
                 start, end = pieces[0][2], pieces[0][3]  # cell computes the same side for a node on it
             else:  # a polyline vertex inside the cell: the chord across it
@@ -117,14 +112,17 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
             side = (xe[e] - start) @ normal
             if not (side.min() < -LENGTH_TOL * size[e] and side.max() > LENGTH_TOL * size[e]):
                 continue  # along an edge of the cell, or through a corner only: not a cut of this cell
-            if local[e] >= 0:  # this rank's cell
-                g.localize_cell(int(local[e]), normal, c_p=c_p, point=start)
-            g.cut_announced(int(ids[e]))
-            covered += sum(float(np.linalg.norm(piece[1] - piece[0])) for piece in pieces)
-            cut += 1
+            g.localize_cell(e, normal, c_p=c_p, point=start)
+            mine.append((k, j, int(g.serial_index[e]), int(g.whole_ids[e]),
+                         sum(float(np.linalg.norm(piece[1] - piece[0])) for piece in pieces)))
+    covered = 0.0
+    every = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:3])
+    for k, _, _, gcell, inside in every:
+        paths.groups[k].cut_announced(gcell)
+        covered += inside
     paths.cracks += 1
     paths.sync()
-    return cut, covered / total
+    return len(every), covered / total
 
 
 def cut_by_plane(groups: list, point: np.ndarray, normal: np.ndarray, c_p: float) -> int:
@@ -149,15 +147,13 @@ def cut_by_plane(groups: list, point: np.ndarray, normal: np.ndarray, c_p: float
     if near and min(gap for gap, _ in near) < NODE_TOL:
         p0 = p0 + 2.0 * NODE_TOL * min(size for _, size in near) * n
     cut = 0
-    paths = groups[0].paths
-    for g in groups:  # the cells of every rank in the serial order: each rank cuts its own, all announce
-        k = paths.groups.index(g)
-        d = (paths.nodes[paths.full_conn[k]] - p0) @ n
-        local = np.full(d.shape[0], -1)
-        local[g.serial_index] = np.arange(g.serial_index.size)
-        for e in np.flatnonzero((d.max(axis=1) > 0.0) & (d.min(axis=1) <= 0.0)).tolist():
-            if local[e] >= 0:
-                g.localize_cell(int(local[e]), n, c_p=c_p, point=p0)
-                cut += 1
-            g.cut_announced(int(paths.full_ids[k][e]))
+    for g in groups:  # each rank cuts its own cells; all announce every cut, in the serial order
+        d = (g.x - p0) @ n
+        crossed = np.flatnonzero((d.max(axis=1) > 0.0) & (d.min(axis=1) <= 0.0))
+        for e in crossed.tolist():
+            g.localize_cell(e, n, c_p=c_p, point=p0)
+        cut += crossed.size
+        mine = [(int(g.serial_index[e]), int(g.whole_ids[e])) for e in crossed.tolist()]
+        for _, gcell in sorted(c for part in exchange.allgather(mine) for c in part):
+            g.cut_announced(gcell)
     return int(sum(exchange.allgather(cut)))

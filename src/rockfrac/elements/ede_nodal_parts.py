@@ -80,7 +80,7 @@ class CutCells(ElementGroup):
         if not bad.size:
             return Evaluation(fe, ke)
         why = {NK.ST_DP_FAIL: "no Drucker-Prager return on a side", NK.ST_CRACK_FAIL: "no return of the crack's law"}
-        cells = g.cell_ids[g.cc_cell[bad[:5]]].tolist()
+        cells = g.whole_ids[g.cc_cell[bad[:5]]].tolist()
         return Evaluation(fe, ke, ok=False, message=f"cut cells {cells}: {why[int(status[bad[0]])]}")
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -63,15 +64,21 @@ class Alone:
 
 class CrackPaths:
     """Crack paths across the EDE groups of a model (2D, and hexahedra of a general 3D body): cell
-    adjacency (shared edges; in 3D shared faces) over the global cell
-    numbering, the cut state of every cell whatever its group (and, on several MPI ranks, whatever
-    its rank), the number of cracks started.
+    adjacency (shared edges; in 3D shared faces), the cut state of the cells, the number of cracks
+    started.
 
-    The cut cells' surfaces (segment and normal) are kept in a table over the global cells, filled
+    Cells are named by their index in the whole mesh. A registry sees the cells of ``full``: each
+    group's cells as (whole mesh ids, connectivity in ``nodes``' numbering); default, the groups'
+    own cells. On one process that is every cell. On several
+    MPI ranks it is the rank's own cells and every cell that shares a side with one (its halo), so
+    that everything an own cell's tracking needs is at hand: its neighbours, their surfaces, the
+    nodes of the sides between them.
+
+    The cut cells' surfaces (segment and normal) are kept in a table over the cells seen, filled
     from the groups that cut them: on one process as they cut them; on several ranks each cut is
-    announced by its owner (:meth:`announce`), so that every rank takes the same tracking decisions
-    (rockfrac.elements.ede). ``full``: each group's cells on every rank, as (global ids,
-    connectivity) in the group's serial order (default: the groups' own cells)."""
+    announced by its owner (:meth:`announce`), so that the table agrees on every rank where the
+    ranks see the same cell. Tracking decisions are taken alike on every rank, each fact about a
+    cell asked of its owner (:meth:`at_owner`; rockfrac.elements.ede)."""
 
     def __init__(self, nodes: np.ndarray, groups: list,
                  full: list[tuple[np.ndarray, np.ndarray]] | None = None, exchange: Exchange | None = None):
@@ -80,61 +87,86 @@ class CrackPaths:
         self.cracks = 0
         self.exchange: Exchange = exchange if exchange is not None else Alone()
         self.stale = False  # the table must be rebuilt from the groups (after a checkpoint's restore)
-        full = full if full is not None else [(g.cell_ids, g.cells) for g in groups]
+        if full is None:
+            full = [(g.whole_ids, g.cells) for g in groups]
         if len(full) != len(groups):
-            raise ValueError(f"{len(full)} full cell lists for {len(groups)} groups")
-        self.full_conn = [np.asarray(c) for _, c in full]  # each group's cells of every rank, serial order
-        self.full_ids = [np.asarray(i) for i, _ in full]  # and their mesh cells
-        n_cells = int(max((i.max(initial=-1) for i, _ in full), default=-1)) + 1
-        self.owner = np.full((n_cells, 2), -1, dtype=np.int64)  # (group, local cell) of each own cell
-        self.group_of = np.full(n_cells, -1, dtype=np.int64)  # the group of every EDE cell, any rank's
-        self.serial = np.full(n_cells, -1, dtype=np.int64)  # its index in its group's serial order
-        for k, (ids, _) in enumerate(full):
-            self.group_of[ids], self.serial[ids] = k, np.arange(ids.size)
+            raise ValueError(f"{len(full)} cell lists for {len(groups)} groups")
+        ids = np.concatenate([np.asarray(i, dtype=np.int64) for i, _ in full] + [np.zeros(0, dtype=np.int64)])
+        order = np.argsort(ids, kind="stable")
+        self.ids = ids[order]  # the whole mesh's id of every cell seen, ascending (their slots)
+        if self.ids.size > 1 and np.any(self.ids[1:] == self.ids[:-1]):
+            raise ValueError("a cell is in two EDE groups")
+        slot_of = np.empty_like(order)
+        slot_of[order] = np.arange(order.size)
+        n = self.ids.size
+        self.owner = np.full((n, 2), -1, dtype=np.int64)  # (group, local cell) of each own cell
         for k, g in enumerate(groups):
-            self.owner[g.cell_ids, 0], self.owner[g.cell_ids, 1] = k, np.arange(g.cell_ids.size)
-        self.cut = np.zeros(n_cells, dtype=bool)  # the table of cut cells (every rank's)
-        self.segment = np.full((n_cells, 2, 2), np.nan)  # 2D: their surfaces clipped to the cells [m]
-        self.anchor = np.full((n_cells, 3), np.nan)  # 3D: a point of their planes [m]
-        self.normal = np.zeros((n_cells, 3))
+            own = self.slots(g.whole_ids)
+            self.owner[own, 0], self.owner[own, 1] = k, np.arange(own.size)
+        self.cut = np.zeros(n, dtype=bool)  # the table of cut cells
+        self.segment = np.full((n, 2, 2), np.nan)  # 2D: their surfaces clipped to the cells [m]
+        self.anchor = np.full((n, 3), np.nan)  # 3D: a point of their planes [m]
+        self.normal = np.zeros((n, 3))
         self.centres = [g.x.mean(axis=1) for g in groups]  # own cell centroids per group [m]
         self._tips: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}  # tip(), until the table changes
-        self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes)
-        gids = np.concatenate([i for i, _ in full] + [np.zeros(0, dtype=np.int64)])
-        if gids.size == 0:
+        self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes) by whole id
+        if n == 0:
             return
-        conn = np.vstack([c for _, c in full if c.size])
-        self.cell_nodes = np.full((n_cells, conn.shape[1]), -1, dtype=np.int64)  # every EDE cell's nodes
-        self.cell_nodes[gids] = conn
+        conn = np.vstack([c for _, c in full if len(c)])
+        self.cell_nodes = np.empty((n, conn.shape[1]), dtype=np.int64)  # every seen cell's nodes
+        self.cell_nodes[slot_of] = conn
         sides = SIDES.get(conn.shape[1]) if nodes.shape[1] == 3 else None  # 3D: faces; 2D: edges
         if sides is None:
             sides = np.stack([np.arange(conn.shape[1]), np.roll(np.arange(conn.shape[1]), -1)], axis=1)
         pairs = conn[:, sides].reshape(-1, sides.shape[1])
-        owner = np.repeat(gids, sides.shape[0])
+        owner = np.repeat(ids, sides.shape[0])
         key = np.sort(pairs, axis=1)
-        order = np.lexsort(key.T[::-1])
-        ks = key[order]
+        by_side = np.lexsort(key.T[::-1])
+        ks = key[by_side]
         for i in np.flatnonzero(np.all(ks[1:] == ks[:-1], axis=1)):  # once, at set-up
-            c1, c2 = int(owner[order[i]]), int(owner[order[i + 1]])
+            c1, c2 = int(owner[by_side[i]]), int(owner[by_side[i + 1]])
             shared = tuple(int(v) for v in ks[i])
             self.nbr.setdefault(c1, []).append((c2, shared))
             self.nbr.setdefault(c2, []).append((c1, shared))
 
+    def slots(self, gcells) -> np.ndarray:
+        """The slots of cells seen here (whole mesh ids); -1 for a cell not seen."""
+        gcells = np.asarray(gcells, dtype=np.int64)
+        at = np.minimum(np.searchsorted(self.ids, gcells), max(self.ids.size - 1, 0))
+        found = self.ids[at] == gcells if self.ids.size else np.zeros(gcells.shape, dtype=bool)
+        return np.where(found, at, -1)
+
+    def _slot(self, gcell: int) -> int:
+        return int(self.slots(np.array([gcell]))[0])
+
     def _cell(self, gcell: int):
-        g, local = self.owner[gcell]
+        s = self._slot(gcell)
+        g, local = self.owner[s] if s >= 0 else (-1, -1)
         return (None, -1) if g < 0 else (self.groups[g], int(local))
+
+    def owns(self, gcell: int) -> bool:
+        """Whether cell gcell is one of this registry's groups' own cells (this rank's)."""
+        return self._cell(gcell)[0] is not None
+
+    def local(self, gcell: int, k: int) -> int:
+        """The index of cell gcell in group k, if it is this rank's cell of group k, else -1."""
+        s = self._slot(gcell)
+        return int(self.owner[s, 1]) if s >= 0 and self.owner[s, 0] == k else -1
 
     # -- the table of cut cells -------------------------------------------------------------------
     def record(self, gcell: int, surface: np.ndarray, normal: np.ndarray) -> None:
         """Enter a cut cell's surface in the table: its segment (2, 2) in 2D, a point of its plane
-        (3,) in 3D [m]."""
-        self.cut[gcell] = True
+        (3,) in 3D [m]. A cell not seen here (another rank's, away from this rank's) is skipped."""
+        s = self._slot(gcell)
+        if s < 0:
+            return
+        self.cut[s] = True
         self._tips.clear()
         if np.shape(surface) == (3,):
-            self.anchor[gcell] = surface
+            self.anchor[s] = surface
         else:
-            self.segment[gcell] = surface
-        self.normal[gcell] = normal
+            self.segment[s] = surface
+        self.normal[s] = normal
 
     @staticmethod
     def _surface(g, local):
@@ -150,12 +182,21 @@ class CrackPaths:
             raise RuntimeError(f"cell {gcell} is held by {len(held)} ranks, not one")
         self.record(gcell, *held[0])
 
+    def at_owner(self, gcell: int, fact: Callable[[int], Any]) -> Any:
+        """fact(gcell) as the rank owning cell gcell finds it, on every rank (a collective call; one
+        process: fact(gcell)). Only the owner sees every neighbour of its cells."""
+        mine = (fact(gcell),) if self.owns(gcell) else None
+        held = [v for v in self.exchange.allgather(mine) if v is not None]
+        if len(held) != 1:
+            raise RuntimeError(f"cell {gcell} is held by {len(held)} ranks, not one")
+        return held[0][0]
+
     def sync(self) -> None:
         """Rebuild the table from every rank's groups (a collective call)."""
         mine = []
         for g in self.groups:
             loc = np.flatnonzero(g.e_state[:, K.E_LOC] == 1.0)
-            mine.append((g.cell_ids[loc], self._surface(g, loc), g.e_state[loc, K.E_N:K.E_N + 3]))
+            mine.append((g.whole_ids[loc], self._surface(g, loc), g.e_state[loc, K.E_N:K.E_N + 3]))
         self.cut[:] = False
         self._tips.clear()
         self.segment[:] = np.nan
@@ -163,11 +204,14 @@ class CrackPaths:
         self.normal[:] = 0.0
         for part in self.exchange.allgather(mine):
             for ids, surface, normal in part:
-                self.cut[ids], self.normal[ids] = True, normal
+                s = self.slots(ids)
+                seen = s >= 0
+                s, surface, normal = s[seen], surface[seen], normal[seen]
+                self.cut[s], self.normal[s] = True, normal
                 if surface.ndim == 2 and surface.shape[1] == 3:
-                    self.anchor[ids] = surface
+                    self.anchor[s] = surface
                 else:
-                    self.segment[ids] = surface
+                    self.segment[s] = surface
         self.stale = False
 
     def current(self) -> None:
@@ -175,12 +219,13 @@ class CrackPaths:
         if self.stale:
             self.sync()
 
-    # -- tracking -----------------------------------------------------------------------------------
+    # -- tracking (of a cell seen with all its neighbours: an own cell) ----------------------------
     def is_cut(self, gcell: int) -> bool:
-        return bool(self.cut[gcell])
+        s = self._slot(gcell)
+        return bool(s >= 0 and self.cut[s])
 
     def cut_neighbours(self, gcell: int) -> list[int]:
-        return [c for c, _ in self.nbr.get(gcell, []) if self.cut[c]]
+        return [c for c, _ in self.nbr.get(gcell, []) if self.is_cut(c)]
 
     def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, neighbour normal) where a cut neighbour's surface ends on the side shared with
@@ -195,43 +240,54 @@ class CrackPaths:
         if self.nodes.shape[1] == 3:
             return self._tip_3d(gcell)
         for c, (a, b) in self.nbr.get(gcell, []):
-            if not self.cut[c]:
+            s = self._slot(c)
+            if not self.cut[s]:
                 continue
             xa, xb = self.nodes[a, :2], self.nodes[b, :2]
             size = np.linalg.norm(xb - xa)
-            for p in self.segment[c]:  # p on edge ab: collinear, between its ends
+            for p in self.segment[s]:  # p on edge ab: collinear, between its ends
                 cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
                 along = np.dot(p - xa, xb - xa) / size**2
                 if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
-                    return p.copy(), self.normal[c].copy()
+                    return p.copy(), self.normal[s].copy()
         return None
 
     def _tip_3d(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         for c, face in self.nbr.get(gcell, []):
-            if not self.cut[c]:
+            s = self._slot(c)
+            if not self.cut[s]:
                 continue
-            conn = self.cell_nodes[c]
+            conn = self.cell_nodes[s]
             verts, ends, _ = plane_polygons(self.nodes[conn][None], EDGES[CELL_OF_NODES[conn.shape[0]]],
-                                            self.anchor[c][None], self.normal[c][None])
+                                            self.anchor[s][None], self.normal[s][None])
             ok = np.isfinite(verts[0]).all(axis=1)
             on = ok & np.isin(conn[np.where(ok[:, None], ends[0], 0)], face).all(axis=1)
             if on.sum() >= 2:
-                return verts[0, on].mean(axis=0), self.normal[c].copy()
+                return verts[0, on].mean(axis=0), self.normal[s].copy()
         return None
 
-    def tip_cells_global(self, k: int) -> set[int]:
-        """Global ids of the uncut cells of group k (on any rank) at a crack tip."""
+    def tip_cells(self, group) -> set[int]:
+        """Local indices in ``group`` of its uncut own cells at a crack tip."""
+        k = self.groups.index(group)
         out = set()
-        for gcell in np.flatnonzero(self.cut).tolist():
-            for c, _ in self.nbr.get(gcell, []):
-                if self.group_of[c] == k and not self.cut[c] and c not in out and self.tip(c) is not None:
-                    out.add(c)
+        for s in np.flatnonzero(self.cut).tolist():
+            for c, _ in self.nbr.get(int(self.ids[s]), []):
+                e = self.local(c, k)
+                if e >= 0 and e not in out and not self.is_cut(c) and self.tip(c) is not None:
+                    out.add(e)
         return out
 
-    def tip_cells(self, group) -> set[int]:
-        """Local indices in ``group`` of its uncut cells at a crack tip."""
-        k = self.groups.index(group)
-        return {int(self.owner[c, 1]) for c in self.tip_cells_global(k) if self.owner[c, 0] == k}
+    def tips_everywhere(self, group) -> list[tuple[int, np.ndarray]]:
+        """Every rank's crack-tip cells of ``group`` with their tip points, as (whole id, point), in
+        the group's serial order (a collective call)."""
+        mine = []
+        for e in sorted(self.tip_cells(group)):
+            gcell = int(group.whole_ids[e])
+            tip = self.tip(gcell)
+            assert tip is not None
+            mine.append((int(group.serial_index[e]), gcell, tip[0]))
+        every = sorted((c for part in self.exchange.allgather(mine) for c in part), key=lambda c: c[0])
+        return [(gcell, point) for _, gcell, point in every]
 
     def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
         """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
@@ -252,14 +308,14 @@ class CrackPaths:
             total, weight = total + t, weight + w_r
         return total / weight if weight > 0.0 else np.full(6, np.nan)
 
-    def nonlocal_normal(self, gcell: int, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
+    def nonlocal_normal(self, group, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
         """Normal (2,) in 2D, (3,) in 3D, that continues a crack from ``point`` (its tip, on the
-        boundary of cell gcell): of the conjugate bifurcation normals (eq. 7-8) of the nonlocal stress
-        at the tip (:meth:`nonlocal_stress`; in 3D the two lowest minima of det A(n) / det A^e(n) on
+        boundary of a cell of ``group``, whose law decides): of the conjugate bifurcation normals
+        (eq. 7-8) of the nonlocal stress at the tip (:meth:`nonlocal_stress`; in 3D the two lowest minima of det A(n) / det A^e(n) on
         the unit sphere), the one closest to ``reference`` (the crack's last normal), signed like it.
         The direction comes from the stress the crack grows into, not from the singular field of the
         one cell at its tip. The tip cell's law gives the tangent."""
-        g = self.groups[self.group_of[gcell]]  # its law (the cell may be another rank's)
+        g = group  # its law (the cell may be another rank's)
         dim = self.nodes.shape[1]
         ref = np.asarray(reference, dtype=float)[:dim]
         sigma = self.nonlocal_stress(point, length)[None, :]
@@ -280,10 +336,11 @@ class CrackPaths:
         return n if n @ ref >= 0.0 else -n
 
 
-def share_crack_paths(groups: list, nodes: np.ndarray, full: list[tuple[np.ndarray, np.ndarray]] | None = None,
+def share_crack_paths(groups: list, nodes: np.ndarray,
+                      full: list[tuple[np.ndarray, np.ndarray]] | None = None,
                       exchange: Exchange | None = None) -> None:
     """Make the EDE groups of a model share one crack-path registry (crack tracking across regions);
-    ``full``: each group's cells on every MPI rank, ``exchange``: the ranks' (see :class:`CrackPaths`)."""
+    ``full``: each group's cells seen by this MPI rank, ``exchange``: the ranks' (see :class:`CrackPaths`)."""
     if groups:
         paths = CrackPaths(nodes, groups, full, exchange)
         for g in groups:

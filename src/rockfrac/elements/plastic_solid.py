@@ -152,7 +152,7 @@ class DruckerPragerSolid(SolidGroup):
         bad = np.flatnonzero(f > 1e-9 * scale)
         if not bad.size:
             return ""
-        cell = self.cell_ids[bad[0] // self.sigma.shape[1]]
+        cell = self.whole_ids[bad[0] // self.sigma.shape[1]]
         return (f"the in-situ stress is outside the Drucker-Prager yield surface of region {self.region!r} at "
                 f"{bad.size} Gauss points (first in cell {cell}: F = {f[bad[0]]:.4g} Pa > 0)")
 

@@ -22,7 +22,8 @@ class SolidGeometry:
     """Cells of one reference type: dofs, physical gradients (n_el, n_qp, n_nodes, dim), det J w.
 
     region: the mesh region (material) the cells belong to; cell_ids: their indices in the mesh
-    (default: all cells, in order).
+    (default: all cells, in order); ``whole_ids``: their indices in the whole mesh (on an MPI rank's
+    piece of it, set by the builder; else cell_ids).
     """
 
     def __init__(self, nodes: np.ndarray, cells: np.ndarray, ref: ReferenceElement, *, region: str = "bulk",
@@ -33,6 +34,7 @@ class SolidGeometry:
         self.cells = cells
         self.name = self.region = region
         self.cell_ids = np.arange(cells.shape[0]) if cell_ids is None else np.asarray(cell_ids)
+        self.whole_ids = self.cell_ids
         self.grads, self.wdet = element_gradients(nodes[cells], ref)
         bad = np.flatnonzero((self.wdet <= 0.0).any(axis=1))
         if bad.size:

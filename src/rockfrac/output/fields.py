@@ -126,7 +126,7 @@ def _segments(built) -> tuple[tuple[np.ndarray, np.ndarray] | None, np.ndarray |
         rec = {k: v[drawn] for k, v in g.records().items()}
         cells = cells[drawn]
         seg = lines[cells]
-        mine = {"x0": seg[:, 0], "x1": seg[:, 1], "host": g.cell_ids[cells],
+        mine = {"x0": seg[:, 0], "x1": seg[:, 1], "host": g.whole_ids[cells],
                 "jump": np.column_stack([rec["jump_t"], rec["jump_n"]]),
                 "traction": np.column_stack([rec["T_t"], rec["T_n"]]), "c": rec["c"], "tan_phi": rec["tan_phi"],
                 "state": np.where(rec["mode"] == 1.0, CrackState.PLASTIC, CrackState.CONSTRAINED).astype(np.int8)}
@@ -160,7 +160,7 @@ def _surfaces(built, disp) -> tuple[np.ndarray | None, np.ndarray | None, dict, 
         w = where.ravel()[corners][:, None]
         rec = g.records()  # the localized cells' in order, with the (t, n x t, n) components
         mine = {"x": verts.reshape(-1, 3)[tri], "u": ((1.0 - w) * disp(a) + w * disp(b)).reshape(-1, 3, 3),
-                "host": g.cell_ids[cells][poly],
+                "host": g.whole_ids[cells][poly],
                 "jump": np.column_stack([rec["jump_t1"], rec["jump_t2"], rec["jump_n"]])[poly],
                 "traction": np.column_stack([rec["T_t1"], rec["T_t2"], rec["T_n"]])[poly],
                 "c": rec["c"][poly], "tan_phi": rec["tan_phi"][poly],
@@ -201,10 +201,11 @@ def step_piece(built, u: np.ndarray) -> StepFields:
     def row(a: np.ndarray) -> np.ndarray:  # a mesh node's row in the piece
         return np.searchsorted(nodes, a)
 
-    segments, seg_hosts, seg_data = _segments(built)
+    segments, seg_hosts, seg_data = _segments(built)  # hosts by their whole mesh ids
     triangles, tri_hosts, tri_data, tri_points = _surfaces(built, lambda a: disp[row(a)])
-    seg = np.flatnonzero(part.cell_part[seg_hosts] == rank) if seg_hosts is not None else np.zeros(0, np.int64)
-    tri = np.flatnonzero(part.cell_part[tri_hosts] == rank) if tri_hosts is not None else np.zeros(0, np.int64)
+    mine = place.cells[own]  # the whole mesh's ids of the rank's own cells
+    seg = np.flatnonzero(np.isin(seg_hosts, mine)) if seg_hosts is not None else np.zeros(0, np.int64)
+    tri = np.flatnonzero(np.isin(tri_hosts, mine)) if tri_hosts is not None else np.zeros(0, np.int64)
     bulk = _bulk_fields(built, u, own)
     inter = ({name: v[own_if] for name, v in _interface_fields(built, u, on_ranks=True).items()}
              if place.n_interfaces else None)  # alike on every rank (a collective call)
@@ -213,7 +214,7 @@ def step_piece(built, u: np.ndarray) -> StepFields:
         mesh.nodes[nodes], row(mesh.cells[own]), mesh.cell_type,
         interfaces=row(interfaces) if own_if.size else None,
         segments=(segments[0][seg], segments[1][seg]) if segments is not None and seg.size else None,
-        segment_cells=np.searchsorted(own, seg_hosts[seg]) if seg_hosts is not None else None,
+        segment_cells=np.searchsorted(mine, seg_hosts[seg]) if seg_hosts is not None else None,
         point_data={"displacement": disp}, bulk_data=bulk, interface_data=inter,
         segment_data={k: v[seg] for k, v in seg_data.items()} or None,
         triangles=triangles[tri] if triangles is not None and tri.size else None,

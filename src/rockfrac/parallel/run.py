@@ -33,6 +33,8 @@ def distribution(comm) -> Distribution:
     """How ``comm``'s ranks share a case: rank 0 makes the whole split mesh, partitions it (METIS, one
     part per rank) and sends each rank its share (its piece of the mesh); an input error found
     there is raised on every rank."""
+    from mpi4py.util import pkl5
+
     rank, size = comm.Get_rank(), comm.Get_size()
 
     def split(mesh: Mesh) -> Partition:
@@ -40,7 +42,9 @@ def distribution(comm) -> Distribution:
 
     def share(make) -> Share:
         """Rank 0 makes the whole mesh and cuts the shares, sending each as it is cut (it holds one
-        at a time beside its own); an input error is raised on every rank."""
+        at a time beside its own); an input error is raised on every rank. A share travels pickled
+        with protocol 5, its arrays as out-of-band buffers (``mpi4py.util.pkl5``: no copy into the
+        pickle, and a piece of more than 2 GiB goes as one message)."""
         failure = None
         if rank == 0:
             try:
@@ -51,12 +55,13 @@ def distribution(comm) -> Distribution:
         failure = comm.bcast(failure, root=0)  # every rank raises it, none waits for the others
         if failure is not None:
             raise failure
+        large = pkl5.Intracomm(comm)
         if rank == 0:
             for r in range(1, size):
-                comm.send(next(shares), dest=r)
+                large.send(next(shares), dest=r)
             mine.whole = whole
             return mine
-        return comm.recv(source=0)
+        return large.recv(source=0)
 
     def make_model(mesh: Mesh, groups: list[ElementGroup], part: RankPartition) -> DistributedModel:
         return DistributedModel(part.n_nodes, groups, np.zeros(0, dtype=np.int64), dim=mesh.dim, comm=comm,

@@ -90,8 +90,8 @@ def test_sliding_rp_joints_solved_by_gmres_amg_match_the_direct_solve(tmp_path):
     direct, krylov = histories["superlu"], histories["gmres-amg"]
     assert direct["n_plastic"][-1] > 0  # the joint slides
     # the same Newton iterations, but for one where a step ends at round-off: an elastic drag step
-    # whose first correction lands within the tolerance (SciPy 1.17's SuperLU: residual 2e-15) or
-    # just above it (GMRES: 7e-14), then takes one more
+    # whose first correction lands within the tolerance (SuperLU: residual 2e-15, on 2026-11-28's
+    # fresh installs) or just above it (GMRES: 7e-14), then takes one more
     off = np.abs(direct["newton_iterations"] - krylov["newton_iterations"])
     assert off.max() <= 1 and np.count_nonzero(off) <= 1, (direct["newton_iterations"], krylov["newton_iterations"])
     for q in ("R_top_x", "u_top_z"):

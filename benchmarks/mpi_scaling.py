@@ -241,7 +241,8 @@ def held_child(problem: str, dofs: float, out: Path) -> None:
     folder = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
     case = None
     if comm.rank == 0:
-        case = case_2d(dofs) if problem == "2d" else case_embedded(dofs) if problem == "embedded" else case_3d(dofs, folder)
+        make = {"2d": case_2d, "embedded": case_embedded}.get(problem)
+        case = make(dofs) if make is not None else case_3d(dofs, folder)
     built = build_distributed(parse_case(comm.bcast(case, root=0), problem), comm)
     seen: set = set()
     layout = built.model.layout  # type: ignore[attr-defined]

@@ -316,20 +316,19 @@ def test_the_3d_band_is_one_continuous_surface(twin_bands):
     on their common face (the crack front), so the band is one surface across the prism."""
     s3 = twin_bands["3d"][0]
     paths = s3.built.embeddeds[0].paths
-    slots = np.flatnonzero(paths.cut)  # the table's rows of the cut cells
-    cut = paths.ids[slots]  # their whole mesh ids
+    cut = np.flatnonzero(paths.cut)  # the registry's slots of the cut cells
     edges = {}
-    for c, s in zip(cut.tolist(), slots.tolist()):
-        conn = paths.cell_nodes[s]
-        verts, ends, _ = plane_polygons(paths.nodes[conn][None], EDGES["hex8"], paths.anchor[s][None],
-                                        paths.normal[s][None])
+    for c in cut.tolist():
+        conn = paths.cell_nodes[c]
+        verts, ends, _ = plane_polygons(paths.nodes[conn][None], EDGES["hex8"], paths.anchor[c][None],
+                                        paths.normal[c][None])
         ok = np.isfinite(verts[0]).all(axis=1)
         edges[c] = (conn, verts[0, ok], ends[0, ok])
     continued = 0
     for c in cut.tolist():
         conn, verts, ends = edges[c]
-        for other, face in paths.nbr.get(c, []):
-            if not paths.is_cut(other):
+        for other, face in paths.nbr.get(c, []):  # by slot
+            if not paths.cut[other]:
                 continue
             mine = verts[np.isin(conn[ends], face).all(axis=1)]
             theirs = edges[other][1][np.isin(edges[other][0][edges[other][2]], face).all(axis=1)]

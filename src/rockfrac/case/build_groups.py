@@ -121,7 +121,8 @@ def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
-                     exchange: Exchange | None = None, rank: int = 0, cell_serial: np.ndarray | None = None) -> list:
+                     exchange: Exchange | None = None, rank: int = 0,
+                     cell_serial: np.ndarray | None = None) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
     ``owned`` (a mask over the cells): only these cells (one MPI rank's, ``rank``), ``exchange``: the
     ranks'; ``cell_serial``: on a piece of the mesh, each cell's index among its material's cells in

@@ -101,7 +101,8 @@ def cut_along(paths: CrackPaths, points: np.ndarray, c_p: float) -> tuple[int, f
                 s = clip_to_cell(xe[cell], a, b)
                 if s is None or (s[1] - s[0]) * np.linalg.norm(b - a) <= LENGTH_TOL * size[cell]:
                     continue
-                chords.setdefault(cell, (j, []))[1].append(np.array([a + s[0] * (b - a), a + s[1] * (b - a), a, b]))
+                chord = np.array([a + s[0] * (b - a), a + s[1] * (b - a), a, b])
+                chords.setdefault(cell, (j, []))[1].append(chord)
         for e, (j, pieces) in chords.items():
             if len(pieces) == 1:  # the line of its polyline segment, through the segment's start: every
                 start, end = pieces[0][2], pieces[0][3]  # cell computes the same side for a node on it

@@ -198,7 +198,8 @@ class EnrichmentRegistry:
         mine = []
         for gi, g in enumerate(self.groups):
             for e in np.flatnonzero(g.cut_serial >= 0).tolist():
-                mine.append((int(g.cut_serial[e]), int(g.whole_ids[e]), int(g.crack_of_cell[e]), g.crossed_sides(e),
+                mine.append((int(g.cut_serial[e]), int(g.whole_ids[e]), int(g.crack_of_cell[e]),
+                             g.crossed_sides(e),
                              tuple(int(v) for v in g.cells[e]), (gi, e)))
         cuts = sorted((c if k == self.rank else c[:5] + (None,)  # another rank's cut has no owner here
                        for k, part in enumerate(self.exchange.allgather(mine)) for c in part), key=lambda c: c[0])

@@ -108,8 +108,8 @@ class CrackPaths:
         self.anchor = np.full((n, 3), np.nan)  # 3D: a point of their planes [m]
         self.normal = np.zeros((n, 3))
         self.centres = [g.x.mean(axis=1) for g in groups]  # own cell centroids per group [m]
-        self._tips: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}  # tip(), until the table changes
-        self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # (neighbour, shared nodes) by whole id
+        self._tips: dict[int, tuple[np.ndarray, np.ndarray] | None] = {}  # tip() by slot, until the table changes
+        self.nbr: dict[int, list[tuple[int, tuple[int, ...]]]] = {}  # by slot: (neighbour's slot, shared nodes)
         if n == 0:
             return
         conn = np.vstack([c for _, c in full if len(c)])
@@ -119,7 +119,7 @@ class CrackPaths:
         if sides is None:
             sides = np.stack([np.arange(conn.shape[1]), np.roll(np.arange(conn.shape[1]), -1)], axis=1)
         pairs = conn[:, sides].reshape(-1, sides.shape[1])
-        owner = np.repeat(ids, sides.shape[0])
+        owner = np.repeat(slot_of, sides.shape[0])
         key = np.sort(pairs, axis=1)
         by_side = np.lexsort(key.T[::-1])
         ks = key[by_side]
@@ -137,7 +137,9 @@ class CrackPaths:
         return np.where(found, at, -1)
 
     def _slot(self, gcell: int) -> int:
-        return int(self.slots(np.array([gcell]))[0])
+        """The slot of one cell (-1: not seen here)."""
+        i = int(np.searchsorted(self.ids, gcell))
+        return i if i < self.ids.size and self.ids[i] == gcell else -1
 
     def _cell(self, gcell: int):
         s = self._slot(gcell)
@@ -225,45 +227,47 @@ class CrackPaths:
         return bool(s >= 0 and self.cut[s])
 
     def cut_neighbours(self, gcell: int) -> list[int]:
-        return [c for c, _ in self.nbr.get(gcell, []) if self.is_cut(c)]
+        """The cut neighbours of cell gcell (whole mesh ids)."""
+        return [int(self.ids[c]) for c, _ in self.nbr.get(self._slot(gcell), []) if self.cut[c]]
 
     def tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, neighbour normal) where a cut neighbour's surface ends on the side shared with
         gcell: in 2D the end of its segment on the shared edge; in 3D the middle of the edge its
         polygon leaves on the shared face (the crack front there). Memoized until the table changes."""
-        if gcell not in self._tips:
-            self._tips[gcell] = self._tip(gcell)
-        found = self._tips[gcell]
+        s = self._slot(gcell)
+        return None if s < 0 else self._tip_at(s)
+
+    def _tip_at(self, s: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """:meth:`tip` of the cell in slot s."""
+        if s not in self._tips:
+            self._tips[s] = self._tip_3d(s) if self.nodes.shape[1] == 3 else self._tip_2d(s)
+        found = self._tips[s]
         return None if found is None else (found[0].copy(), found[1].copy())
 
-    def _tip(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
-        if self.nodes.shape[1] == 3:
-            return self._tip_3d(gcell)
-        for c, (a, b) in self.nbr.get(gcell, []):
-            s = self._slot(c)
-            if not self.cut[s]:
+    def _tip_2d(self, s: int) -> tuple[np.ndarray, np.ndarray] | None:
+        for c, (a, b) in self.nbr.get(s, []):
+            if not self.cut[c]:
                 continue
             xa, xb = self.nodes[a, :2], self.nodes[b, :2]
             size = np.linalg.norm(xb - xa)
-            for p in self.segment[s]:  # p on edge ab: collinear, between its ends
+            for p in self.segment[c]:  # p on edge ab: collinear, between its ends
                 cross = abs((xb[0] - xa[0]) * (p[1] - xa[1]) - (xb[1] - xa[1]) * (p[0] - xa[0])) / size
                 along = np.dot(p - xa, xb - xa) / size**2
                 if cross < 1e-9 * size and -1e-9 <= along <= 1 + 1e-9:
-                    return p.copy(), self.normal[s].copy()
+                    return p.copy(), self.normal[c].copy()
         return None
 
-    def _tip_3d(self, gcell: int) -> tuple[np.ndarray, np.ndarray] | None:
-        for c, face in self.nbr.get(gcell, []):
-            s = self._slot(c)
-            if not self.cut[s]:
+    def _tip_3d(self, s: int) -> tuple[np.ndarray, np.ndarray] | None:
+        for c, face in self.nbr.get(s, []):
+            if not self.cut[c]:
                 continue
-            conn = self.cell_nodes[s]
+            conn = self.cell_nodes[c]
             verts, ends, _ = plane_polygons(self.nodes[conn][None], EDGES[CELL_OF_NODES[conn.shape[0]]],
-                                            self.anchor[s][None], self.normal[s][None])
+                                            self.anchor[c][None], self.normal[c][None])
             ok = np.isfinite(verts[0]).all(axis=1)
             on = ok & np.isin(conn[np.where(ok[:, None], ends[0], 0)], face).all(axis=1)
             if on.sum() >= 2:
-                return verts[0, on].mean(axis=0), self.normal[s].copy()
+                return verts[0, on].mean(axis=0), self.normal[c].copy()
         return None
 
     def tip_cells(self, group) -> set[int]:
@@ -271,10 +275,10 @@ class CrackPaths:
         k = self.groups.index(group)
         out = set()
         for s in np.flatnonzero(self.cut).tolist():
-            for c, _ in self.nbr.get(int(self.ids[s]), []):
-                e = self.local(c, k)
-                if e >= 0 and e not in out and not self.is_cut(c) and self.tip(c) is not None:
-                    out.add(e)
+            for c, _ in self.nbr.get(s, []):
+                g, e = self.owner[c]
+                if g == k and e not in out and not self.cut[c] and self._tip_at(c) is not None:
+                    out.add(int(e))
         return out
 
     def tips_everywhere(self, group) -> list[tuple[int, np.ndarray]]:
@@ -311,8 +315,9 @@ class CrackPaths:
     def nonlocal_normal(self, group, point: np.ndarray, reference: np.ndarray, length: float) -> np.ndarray:
         """Normal (2,) in 2D, (3,) in 3D, that continues a crack from ``point`` (its tip, on the
         boundary of a cell of ``group``, whose law decides): of the conjugate bifurcation normals
-        (eq. 7-8) of the nonlocal stress at the tip (:meth:`nonlocal_stress`; in 3D the two lowest minima of det A(n) / det A^e(n) on
-        the unit sphere), the one closest to ``reference`` (the crack's last normal), signed like it.
+        (eq. 7-8) of the nonlocal stress at the tip (:meth:`nonlocal_stress`; in 3D the two lowest
+        minima of det A(n) / det A^e(n) on the unit sphere), the one closest to ``reference`` (the
+        crack's last normal), signed like it.
         The direction comes from the stress the crack grows into, not from the singular field of the
         one cell at its tip. The tip cell's law gives the tangent."""
         g = group  # its law (the cell may be another rank's)

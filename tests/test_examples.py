@@ -36,13 +36,24 @@ def test_every_example_file_validates():
             load_case(p)
 
 
-def small(path: Path) -> dict:
-    """The case of an example file made small: coarser generated meshes, at most 12 steps a stage
-    (the same loads: larger increments)."""
+#: examples whose mesh file their mesh.py writes: the options of a coarse one (as the mesh script test's)
+COARSE_MESH_FILES = {"aggregate_3d": ["--cells", "3", "3", "6", "--grains", "4"]}
+
+
+def small(path: Path, folder: Path | None = None) -> dict:
+    """The case of an example file made small: coarser generated meshes (a mesh file its mesh.py
+    writes: written coarse into ``folder``), at most 12 steps a stage (the same loads: larger
+    increments)."""
     data = tomllib.loads(path.read_text())
     mesh = data.get("mesh", {})
     if mesh.get("file"):
         mesh["file"] = str((path.parent / mesh["file"]).resolve())
+    coarse = COARSE_MESH_FILES.get(path.parent.name)
+    if coarse is not None and folder is not None:
+        out = folder / Path(mesh["file"]).name
+        subprocess.run([sys.executable, str(path.parent / "mesh.py"), *coarse, "--out", str(out)], check=True,
+                       capture_output=True)
+        mesh["file"] = str(out)
     if mesh.get("kind") == "block" and mesh.get("element") not in ("hex8", "tet4"):  # (the 3D prisms are small)
         mesh["nx"], mesh["ny"] = max(2, mesh.get("nx", 1) // 4), max(2, mesh.get("ny", 1) // 4)
     if mesh.get("kind") == "grains":
@@ -63,7 +74,7 @@ def small(path: Path) -> dict:
 @pytest.mark.parametrize("path", [p for p in CASES if not TESTED_ELSEWHERE & set(p.parts)],
                          ids=lambda p: str(p.relative_to(EXAMPLES)))
 def test_every_example_case_runs_small(tmp_path, path):
-    summary = run_case(parse_case(small(path), str(path)), tmp_path / "o")
+    summary = run_case(parse_case(small(path, tmp_path), str(path)), tmp_path / "o")
     from rockfrac.output.csvout import read_csv
 
     h = read_csv(tmp_path / "o" / "history.csv")
@@ -76,7 +87,7 @@ def test_every_example_case_runs_small(tmp_path, path):
 def test_every_mesh_script_writes_a_mesh(tmp_path, script):
     out = tmp_path / "m.msh"
     size = {"brazilian": ["--size", "0.01"], "borehole": ["--size", "0.02"], "bending": ["--size", "0.01"],
-            "triaxial": ["--size", "0.02"], "aggregate_3d": ["--cells", "3", "3", "6", "--grains", "4"],
+            "triaxial": ["--size", "0.02"], **COARSE_MESH_FILES,
             "embedded_3d": ["--divisions", "4", "2", "8"]}
     subprocess.run([sys.executable, str(script), *size[script.parent.name], "--out", str(out)], check=True,
                    capture_output=True, timeout=300)

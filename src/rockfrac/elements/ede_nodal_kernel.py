@@ -31,19 +31,25 @@ ST_CRACK_FAIL = -4
 
 
 @inner
-def _side_point(g, factor, n_nodes, bt):
-    """bt (3, 4 n_nodes) = [B, B_q] at a side point: B of the gradients g (n_nodes, 2) on the u's and
-    factor[a] B_a on the q's (plane strain, rows xx, yy, xy, engineering shear)."""
-    bt[:, :] = 0.0
+def _strain_rows(g, n_nodes, dim, b):
+    """b (rows, dim n_nodes) = B of the shape gradients g (n_nodes, dim) at a point: plane strain rows
+    xx, yy, xy; 3D rows xx, yy, zz, xy, yz, xz (engineering shears)."""
+    b[:, :] = 0.0
     for a in range(n_nodes):
-        gx, gy = g[a, 0], g[a, 1]
-        for part in range(2):
-            f = 1.0 if part == 0 else factor[a]
-            c = 2 * a + part * 2 * n_nodes
-            bt[0, c] = f * gx
-            bt[1, c + 1] = f * gy
-            bt[2, c] = f * gy
-            bt[2, c + 1] = f * gx
+        c = dim * a
+        if dim == 2:
+            gx, gy = g[a, 0], g[a, 1]
+            b[0, c] = gx
+            b[1, c + 1] = gy
+            b[2, c], b[2, c + 1] = gy, gx
+        else:
+            gx, gy, gz = g[a, 0], g[a, 1], g[a, 2]
+            b[0, c] = gx
+            b[1, c + 1] = gy
+            b[2, c + 2] = gz
+            b[3, c], b[3, c + 1] = gy, gx
+            b[4, c + 1], b[4, c + 2] = gz, gy
+            b[5, c], b[5, c + 2] = gz, gx
 
 
 #: the Voigt rows (xx, yy, zz, xy, yz, xz) a side point's strain has: plane strain's, a 3D cell's
@@ -55,54 +61,74 @@ SOLID_ROWS = np.arange(6)
 def _side_points(ue, enr, cw, cside, cgrads, chnode, cstate, dp_p, k, mu, ce, cstate_new, csigma, fe, ke, rows,
                  dim):
     """fe, ke (zeroed here) of a cut cell's side points: each a Drucker-Prager point on [B, B_q] (the
-    rows of its strain: PLANE_ROWS in 2D, SOLID_ROWS in 3D). Returns a status."""
+    rows of its strain: PLANE_ROWS in 2D, SOLID_ROWS in 3D). Returns a status.
+
+    On one side of the crack B_q = B diag(e_a (H - H_a)) is B scaled node by node, the same at every
+    point of the side, so each side's sums of w B^T C B and w B^T sigma are made on the u's (a quarter
+    of the products) and spread onto (u, q) once."""
     n_nodes = enr.shape[0]
     nr = rows.shape[0]
-    nd = 2 * dim * n_nodes
-    bt = np.empty((nr, nd))
+    nu = dim * n_nodes
+    b = np.empty((nr, nu))
+    cb = np.empty((nr, nu))
+    v = np.empty(nu)
     eps6 = np.zeros(6)
     c6 = np.empty((6, 6))
     work = np.empty((5, 6))
-    factor = np.empty(n_nodes)
-    cb = np.empty((nr, nd))
-    fe[:] = 0.0
-    ke[:, :] = 0.0
+    f_side = np.zeros((2, nu))
+    k_side = np.zeros((2, nu, nu))
     status = ST_OK
     for p in range(cw.shape[0]):
         w = cw[p]
         if w == 0.0:
             continue
-        for a in range(n_nodes):
-            factor[a] = enr[a] * (cside[p] - chnode[a])
-        if dim == 2:
-            _side_point(cgrads[p], factor, n_nodes, bt)
-        else:
-            _side_point_3d(cgrads[p], factor, n_nodes, bt)
+        for a in range(n_nodes):  # the displacement u + (H - H_a) q of each node at this side's points
+            factor = enr[a] * (cside[p] - chnode[a])
+            for i in range(dim):
+                v[dim * a + i] = ue[dim * a + i] + factor * ue[nu + dim * a + i]
+        _strain_rows(cgrads[p], n_nodes, dim, b)
         for i in range(nr):
             acc = 0.0
-            for j in range(nd):
-                acc += bt[i, j] * ue[j]
+            for j in range(nu):
+                acc += b[i, j] * v[j]
             eps6[rows[i]] = acc
         st = dp.return_map_into(eps6, cstate[p], dp_p, k, mu, ce, work, csigma[p], c6, cstate_new[p])
         if st < 0:
             status = ST_DP_FAIL
             continue
+        s = 1 if cside[p] > 0.5 else 0
         for i in range(nr):
-            for j in range(nd):
+            for j in range(nu):
                 acc = 0.0
                 for m in range(nr):
-                    acc += c6[rows[i], rows[m]] * bt[m, j]
+                    acc += c6[rows[i], rows[m]] * b[m, j]
                 cb[i, j] = acc
-        for a in range(nd):
+        for a in range(nu):
             fa = 0.0
             for i in range(nr):
-                fa += bt[i, a] * csigma[p, rows[i]]
-            fe[a] += w * fa
-            for b in range(nd):
+                fa += b[i, a] * csigma[p, rows[i]]
+            f_side[s, a] += w * fa
+            for c in range(nu):
                 acc = 0.0
                 for i in range(nr):
-                    acc += bt[i, a] * cb[i, b]
-                ke[a, b] += w * acc
+                    acc += b[i, a] * cb[i, c]
+                k_side[s, a, c] += w * acc
+    fe[:] = 0.0
+    ke[:, :] = 0.0
+    scale = np.empty(nu)
+    for s in range(2):
+        for a in range(n_nodes):
+            for i in range(dim):
+                scale[dim * a + i] = enr[a] * (s - chnode[a])
+        for a in range(nu):
+            fe[a] += f_side[s, a]
+            fe[nu + a] += scale[a] * f_side[s, a]
+            for c in range(nu):
+                kv = k_side[s, a, c]
+                ke[a, c] += kv
+                ke[a, nu + c] += kv * scale[c]
+                ke[nu + a, c] += scale[a] * kv
+                ke[nu + a, nu + c] += scale[a] * scale[c] * kv
     return status
 
 
@@ -205,24 +231,6 @@ def cut_blocks(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, 
 
 
 # -- general 3D cells (tet4, hex8) --------------------------------------------------------------------
-
-@inner
-def _side_point_3d(g, factor, n_nodes, bt):
-    """bt (6, 6 n_nodes) = [B, B_q] at a side point of a 3D cell (rows xx, yy, zz, xy, yz, xz,
-    engineering shear): B of the gradients g (n_nodes, 3) on the u's, factor[a] B_a on the q's."""
-    bt[:, :] = 0.0
-    for a in range(n_nodes):
-        gx, gy, gz = g[a, 0], g[a, 1], g[a, 2]
-        for part in range(2):
-            f = 1.0 if part == 0 else factor[a]
-            c = 3 * a + part * 3 * n_nodes
-            bt[0, c] = f * gx
-            bt[1, c + 1] = f * gy
-            bt[2, c + 2] = f * gz
-            bt[3, c], bt[3, c + 1] = f * gy, f * gx
-            bt[4, c + 1], bt[4, c + 2] = f * gz, f * gy
-            bt[5, c], bt[5, c + 2] = f * gz, f * gx
-
 
 @inner
 def _cut_cell_3d(ue, enr, cw, cside, cgrads, chnode, cstate, cshape, cwk, cframe, ccp, dp_p, k, mu, ce, law, kt,

@@ -185,10 +185,11 @@ def _side_neighbours(cells: np.ndarray, dim: int) -> list[set[int]]:
 
 
 @pytest.mark.parametrize("n, element", [(2, "quad4"), (3, "quad4"), (2, "hex8")])
-def test_an_embedded_cases_piece_is_its_own_cells_and_their_side_neighbours(n, element):
+def test_an_embedded_cases_piece_is_its_own_cells_and_their_neighbours(n, element):
     """With embedded cracks a rank's piece holds its own cells and every cell across one of their
     sides (edges; faces of hexahedra), no other, and each cell's place in its material's serial
-    order; nodal cracks still give every rank the whole mesh."""
+    order; with nodal cracks every cell sharing a node with one of its own, and the nodes the
+    enrichment numbers with their ranks."""
     case = resolve(parse_case(_band(element=element), "band"), "band")
     part_of = {}
     whole, cut = cut_shares(case, "band", n, lambda mesh: part_of.setdefault("p", partition(mesh, n)))
@@ -203,6 +204,19 @@ def test_an_embedded_cases_piece_is_its_own_cells_and_their_side_neighbours(n, e
         assert set(share.mesh.place.cells.tolist()) == expected
         assert len(expected) < 0.75 * whole.cells.shape[0]
         np.testing.assert_array_equal(share.cell_serial, serial[share.mesh.place.cells])
+        assert share.enrichment is None
+    if element != "quad4":
+        return
     nodal = resolve(parse_case(_band("nodal"), "band"), "band")
-    whole, cut = cut_shares(nodal, "band", n, lambda mesh: partition(mesh, n))
-    assert all(s.mesh.cells.shape[0] == whole.cells.shape[0] for s in cut)
+    part_of.clear()
+    whole, cut = cut_shares(nodal, "band", n, lambda mesh: part_of.setdefault("p", partition(mesh, n)))
+    part = part_of["p"]
+    for r, share in enumerate(cut):
+        own = np.flatnonzero(part.cell_part == r)
+        at = set(whole.cells[own].ravel().tolist())
+        expected = {c for c in range(whole.cells.shape[0]) if at & set(whole.cells[c].tolist())}
+        assert set(share.mesh.place.cells.tolist()) == expected
+        assert len(expected) < 0.75 * whole.cells.shape[0]
+        nodes, ranks = share.enrichment
+        np.testing.assert_array_equal(nodes, np.arange(whole.n_nodes))  # the band's rock is all EDE cells
+        np.testing.assert_array_equal(ranks, part.node_part)

@@ -373,13 +373,11 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
     par = mpirun(n, "history", case, tmp_path)
     assert_same_history(par, ser, any_iterations=name in CHATTY)
     # each rank ran on its piece of the mesh: its own cells and, with embedded cracks, the cells
-    # sharing a side with them (the nodal enrichment's registry still needs the whole mesh)
+    # sharing a side (nodal cracks: a node) with them
     whole = int(par["whole_cells"][0])
-    if case.get("embedded", {}).get("kinematics") == "nodal":
-        np.testing.assert_array_equal(par["piece_cells"], whole)
-    else:
-        assert par["piece_cells"].max() <= (0.7 if n == 2 else 0.55) * whole
-        assert par["seen_cells"].max() <= par["piece_cells"].max()
+    nodal = case.get("embedded", {}).get("kinematics") == "nodal"
+    assert par["piece_cells"].max() <= {2: 0.7, 3: 0.55}[n] * whole + (0.05 * whole if nodal else 0)
+    assert par["seen_cells"].max() <= par["piece_cells"].max()
 
 
 @pytest.mark.parametrize("linear", ["petsc-gamg", "petsc-hypre"])

@@ -178,7 +178,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     owned = part.cell_part == rank if part is not None else None
     try:
         bulks = make_bulk_groups(case, mesh, path, owned, distribution.exchange if distribution is not None else None,
-                                 rank, share.cell_serial if share is not None else None)
+                                 rank, share.cell_serial if share is not None else None,
+                                 share.enrichment[0] if share is not None and share.enrichment is not None else None)
     except CaseError:
         raise
     except ValueError as err:
@@ -208,8 +209,9 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         cohesives += groups
     extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
     held = [g for g in extras if isinstance(g, HeldEnrichment)]
-    if part is not None and held:  # each node's q's on the rank of its dofs
-        owner = part.node_part[held[0].registry.nodes]
+    if part is not None and held:  # each node's q's on the rank of its dofs (rank 0 found them)
+        assert share is not None and share.enrichment is not None
+        owner = share.enrichment[1]
         held[0].hold_only(np.flatnonzero(owner == rank))
         extra_part.append(owner)
     if part is not None and extra_part:

@@ -85,6 +85,14 @@ def material_cells(case: Case, mesh: Mesh, path: str) -> list[tuple[BulkSection,
     return out
 
 
+def is_embedded(case: Case, section: BulkSection, region: str) -> bool:
+    """Whether a material's cells carry embedded cracks: a Drucker-Prager material of [embedded]'s
+    regions (every one by default)."""
+    emb = case.embedded
+    return (emb is not None and section.model is BulkModel.drucker_prager
+            and (emb.regions is None or region in emb.regions))
+
+
 def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none",
                     junction: np.ndarray | None = None) -> list:
     """The CSE group of a cohesive set: EP, or RP with augmented multipliers (``junction``: which
@@ -121,12 +129,13 @@ def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:
 
 
 def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.ndarray | None = None,
-                     exchange: Exchange | None = None, rank: int = 0,
-                     cell_serial: np.ndarray | None = None) -> list:
+                     exchange: Exchange | None = None, rank: int = 0, cell_serial: np.ndarray | None = None,
+                     enrichment_nodes: np.ndarray | None = None) -> list:
     """One bulk group per material: elastic, Drucker-Prager, or Drucker-Prager with embedded cracks;
     ``owned`` (a mask over the cells): only these cells (one MPI rank's, ``rank``), ``exchange``: the
-    ranks'; ``cell_serial``: on a piece of the mesh, each cell's index among its material's cells in
-    the whole mesh (default: the mesh is whole)."""
+    ranks'; on a piece of the mesh, ``cell_serial``: each cell's index among its material's cells in
+    the whole mesh, ``enrichment_nodes``: the whole mesh's nodes of the nodal cracks' cells (default:
+    the mesh is whole)."""
     ref = ELEMENTS[mesh.cell_type]
     emb = case.embedded
     general = mesh.dim == 3 and case.mesh.kind is not MeshKind.specimen  # not the plane-strain slab
@@ -138,10 +147,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
                         "[embedded]")
     if emb is not None and emb.kinematics == "nodal":
         refuse_nodal(case, mesh, path)
-    ede_regions = None
     if emb is not None and emb.regions is not None:
         require(emb.regions, mesh.regions, "region", "[embedded] regions", path)
-        ede_regions = set(emb.regions)
     groups = []
     full: dict[int, tuple] = {}  # an EDE group's cells this rank sees: (whole mesh ids, connectivity)
     whole = mesh.place.cells if mesh.place is not None else np.arange(mesh.cells.shape[0])
@@ -152,7 +159,7 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
             serial, cells = serial[owned[cells]], cells[owned[cells]]
         sub = mesh.cells[cells]
         dp = section.model is BulkModel.drucker_prager
-        if emb is not None and dp and (ede_regions is None or region in ede_regions):
+        if emb is not None and is_embedded(case, section, region):
             kinds: dict[str, Any] = dict(band=emb.band.value, plane_strain=not general, tracking=emb.tracking,
                                          max_cracks=emb.max_cracks, tracking_length=emb.tracking_length,
                                          region=region, cell_ids=cells)
@@ -184,7 +191,8 @@ def make_bulk_groups(case: Case, mesh: Mesh, path: str = "<case>", owned: np.nda
     if nodal:  # one enrichment for every nodal group (a crack crosses regions), its unknowns owned by the first
         registry = EnrichmentRegistry(nodal, mesh.cells, dim=mesh.dim,
                                       every_cell=[full[id(g)][1] for g in nodal],
-                                      exchange=exchange if owned is not None else None, rank=rank)
+                                      exchange=exchange if owned is not None else None, rank=rank,
+                                      place=mesh.place, nodes=enrichment_nodes)
         for k, g in enumerate(nodal):
             g.attach(registry, first=k == 0)
     return groups

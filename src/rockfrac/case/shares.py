@@ -6,8 +6,10 @@ partition, its cohesive points and its monitors on the piece's nodes.
 A rank's piece is its own cells and interface cells, and the interface cells its cohesive points
 lie on (a point's weight and normal come from every cell of its node pair). With embedded cracks it
 also holds every cell that shares a side with one of its own (its halo): a crack grows from a cell
-into its neighbours (rockfrac.elements.ede_paths.CrackPaths). Nodal embedded cracks give every rank
-the whole mesh: their enrichment registry numbers every node of every rank's cells.
+into its neighbours (rockfrac.elements.ede_paths.CrackPaths). With nodal embedded cracks the halo
+is every cell that shares a node with one of its own: whether a node carries a crack's enrichment
+depends on every cell round it (rockfrac.elements.ede_enrichment), and rank 0 sends the nodes the
+enrichment numbers, with their owners.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rockfrac.case.build_groups import material_cells
+from rockfrac.case.build_groups import is_embedded, material_cells
 from rockfrac.case.build_mesh import insert_cohesive, make_mesh
 from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
@@ -35,15 +37,16 @@ from rockfrac.output.history import Monitor
 class CohesiveShare:
     """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
     group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
-    points each rank has (their multipliers' blocks; with the whole mesh on every rank, each point's
-    rank), which of the rank's points sit at a junction (a node split into three copies or more,
-    in the whole mesh) and which lie on loops of pairs of every set (:func:`looped_pairs_by_set`)."""
+    points each rank has (their multipliers' blocks; beside nodal cracks, whose enrichments are
+    numbered knowing every one's rank, each point's rank), which of the rank's points sit at a
+    junction (a node split into three copies or more, in the whole mesh) and which lie on loops of
+    pairs of every set (:func:`looped_pairs_by_set`)."""
 
     points: InterfacePoints
     total: int
     minus_group: np.ndarray  # the bulk group (material) of the cells round each point's minus node, the last
     owner_counts: np.ndarray | None = None  # rigid-plastic: the set's points on each rank
-    owners: np.ndarray | None = None  # rigid-plastic, every rank with the whole mesh: each point's rank
+    owners: np.ndarray | None = None  # rigid-plastic beside nodal cracks: each point's rank
     junction: np.ndarray | None = None
     on_loops: np.ndarray | None = None  # rigid-plastic: which of the rank's points lie on loops of pairs
 
@@ -61,6 +64,7 @@ class Share:
     monitors: list[Monitor]
     whole: Mesh | None = None
     cell_serial: np.ndarray | None = None  # each piece cell's index among its material's cells in the whole mesh
+    enrichment: tuple[np.ndarray, np.ndarray] | None = None  # nodal cracks: their nodes (whole ids), their ranks
 
 
 def _on_piece(points: InterfacePoints, ids: np.ndarray) -> InterfacePoints:
@@ -76,9 +80,12 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     part: Partition = split(mesh)
     node_group = np.full(mesh.n_nodes, -1)  # the last bulk group (material) whose cells hold each node
     serial = np.zeros(mesh.cells.shape[0], dtype=np.int64)  # each cell's index among its material's
-    for k, (_, cells, _) in enumerate(material_cells(case, mesh, path)):  # every cell one material
+    ede = [np.zeros(0, dtype=np.int64)]  # the cells with embedded cracks
+    for k, (material, cells, region) in enumerate(material_cells(case, mesh, path)):  # every cell one material
         node_group[mesh.cells[cells].ravel()] = k
         serial[cells] = np.arange(cells.size)
+        if is_embedded(case, material, region):
+            ede.append(cells)
     check_boundary_groups(case, mesh, path)
     monitors = resolve_monitors(case, mesh, path)
     rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
@@ -94,11 +101,34 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
         loops = looped_pairs_by_set([p.minus for _, _, p, _, _ in sets], [p.plus for _, _, p, _, _ in sets],
                                     mesh.n_nodes)
     emb = case.embedded
-    whole_mesh = emb is not None and emb.kinematics == "nodal"  # the enrichment numbers every rank's nodes
-    sides = side_ids(mesh) if emb is not None and not whole_mesh else None  # a halo of cells by their sides
+    nodal = emb is not None and emb.kinematics == "nodal"
+    enrichment = None
+    if nodal:  # the nodes the enrichment numbers, each with its rank
+        nodes = np.unique(mesh.cells[np.concatenate(ede)])
+        enrichment = (nodes, part.node_part[nodes])
+    sides = side_ids(mesh) if emb is not None and not nodal else None  # a halo across the sides
     cutter = Cutter(mesh)
-    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, whole_mesh, loops, sides,
-                         serial)
+    return mesh, _shares(case, mesh, part, cutter, sets, node_group, monitors, n_ranks, loops, serial,
+                         Halo(sides, nodal), enrichment)
+
+
+@dataclass(frozen=True)
+class Halo:
+    """Which cells beside its own a rank's piece holds: none, those across a side (``sides``:
+    :func:`side_ids`), or every cell sharing a node with one of its own (``by_nodes``)."""
+
+    sides: np.ndarray | None
+    by_nodes: bool
+
+    def of(self, mesh: Mesh, own: np.ndarray) -> np.ndarray:
+        """The halo cells of the ``own`` cells (a mask over the cells)."""
+        if self.by_nodes:
+            touched = np.zeros(mesh.n_nodes, dtype=bool)
+            touched[mesh.cells[own].ravel()] = True
+            return np.flatnonzero(touched[mesh.cells].any(axis=1) & ~own)
+        if self.sides is not None:
+            return halo(self.sides, own)
+        return np.zeros(0, dtype=np.int64)
 
 
 def side_ids(mesh: Mesh) -> np.ndarray:
@@ -116,30 +146,26 @@ def halo(sides: np.ndarray, own: np.ndarray) -> np.ndarray:
 
 
 def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list, node_group: np.ndarray,
-            monitors: list[Monitor], n_ranks: int, whole_mesh: bool, loops: list | None, sides: np.ndarray | None,
-            serial: np.ndarray) -> Iterator[Share]:
+            monitors: list[Monitor], n_ranks: int, loops: list | None, serial: np.ndarray, near: Halo,
+            enrichment: tuple[np.ndarray, np.ndarray] | None) -> Iterator[Share]:
     """Each rank's share in turn (see :func:`cut_shares`)."""
     blocks = part.node_blocks()
     for r in range(n_ranks):
-        if whole_mesh:
-            piece = cutter.piece(np.arange(mesh.cells.shape[0]), np.arange(mesh.interfaces.shape[0]))
-        else:
-            held = [cells[((where[p.segment_points] == r) & (p.segment_points >= 0)).any(axis=1)]
-                    for _, cells, p, where, _ in sets]
-            own = part.cell_part == r
-            near = halo(sides, own) if sides is not None else np.zeros(0, dtype=np.int64)
-            piece = cutter.piece(np.concatenate([np.flatnonzero(own), near]),
-                                 np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
+        held = [cells[((where[p.segment_points] == r) & (p.segment_points >= 0)).any(axis=1)]
+                for _, cells, p, where, _ in sets]
+        own = part.cell_part == r
+        piece = cutter.piece(np.concatenate([np.flatnonzero(own), near.of(mesh, own)]),
+                             np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
         ids = piece.place.nodes  # type: ignore[union-attr]
         coh = []
         for k, (section, _, p, where, junction) in enumerate(sets):
             rp = section.form is CohesiveForm.rp
             coh.append(CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
                                      np.bincount(where, minlength=n_ranks) if rp else None,
-                                     where if rp and whole_mesh else None,
+                                     where if rp and enrichment is not None else None,
                                      junction[where == r] if junction is not None else None,
                                      loops[k][where == r] if loops is not None else None))
         place = piece.place
         assert place is not None
         yield Share(case, piece, part.of_piece(r, place.cells, place.interfaces, ids, blocks), coh,
-                    [m.on_piece(ids) for m in monitors], cell_serial=serial[place.cells])
+                    [m.on_piece(ids) for m in monitors], cell_serial=serial[place.cells], enrichment=enrichment)

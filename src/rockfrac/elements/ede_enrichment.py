@@ -16,10 +16,14 @@ A crack that reaches a loaded boundary splits the load of the edge it crosses be
 (:meth:`EnrichmentRegistry.surface_forces`); the q of a node whose displacement is prescribed is
 prescribed too (a crack does not open across a support).
 
-On several MPI ranks every rank keeps the same registry: it numbers the nodes of every rank's cells,
-and each cut is entered on every rank when its owner announces it (the sides its crack crosses, the
-traces on them, the cell's nodes), in the serial order, so that cracks, tips and enriched nodes are
-the same everywhere; a rank computes the boundary loads' share of its own cut cells only.
+On several MPI ranks every rank numbers the nodes of every rank's cells alike, and each cut is
+entered on every rank when its owner announces it (the sides its crack crosses, the traces on them,
+the cell's nodes, and the cracks it joins), in the serial order, so that cracks and crack ids are
+the same everywhere. Nodes and cells are named by their index in the whole mesh. A rank whose mesh
+is a piece of the whole (its own cells and every cell sharing a node with one) knows the sides of
+the cells it sees only: that is enough to decide the tips and enrichments of its own cells' nodes,
+and the owner of a cut, which sees all its neighbours, finds the cracks it joins. A rank computes
+the boundary loads' share of its own cut cells only.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import numpy as np
 
 from rockfrac.elements.ede_paths import Alone, Exchange
 from rockfrac.fem.dofs import Numbering
+from rockfrac.mesh.mesh import PlaceInWhole
 
 
 def side_key(nodes) -> tuple[int, ...]:
@@ -48,21 +53,27 @@ def cell_sides(cells: np.ndarray, dim: int) -> list[tuple[int, ...]]:
 class EnrichmentRegistry:
     """The enriched unknowns of a model's nodal-crack groups (module doc).
 
-    groups: the groups (each with ``cells`` (n_el, k) mesh nodes and ``cell_ids`` their mesh cells);
-    mesh_cells: every cell of the mesh (n, k) (the neighbours across crack-tip sides). A group tells
-    where its cut cell e's crack crosses the cell's sides: ``crossed_sides(e)``, a list of (side's
-    mesh nodes, the crack's trace on it: its end point in 2D, its segment on the face in 3D).
+    groups: the groups (each with ``cells`` (n_el, k) mesh nodes and ``whole_ids`` their cells in the
+    whole mesh); mesh_cells: every cell of the mesh (n, k) (the neighbours across crack-tip sides). A
+    group tells where its cut cell e's crack crosses the cell's sides: ``crossed_sides(e)``, a list
+    of (side's mesh nodes, the crack's trace on it: its end point in 2D, its segment on the face in 3D).
     """
 
     def __init__(self, groups: list, mesh_cells: np.ndarray, dim: int = 2, every_cell: list | None = None,
-                 exchange: Exchange | None = None, rank: int = 0):
+                 exchange: Exchange | None = None, rank: int = 0, place: PlaceInWhole | None = None,
+                 nodes: np.ndarray | None = None):
         """every_cell: each group's cells (mesh nodes) on every MPI rank (default: the groups' own);
-        exchange: the ranks' (the registry is then the same on every rank: see :meth:`announce`), of
-        which this is ``rank``."""
+        exchange: the ranks' (the cuts are then announced: see :meth:`announce`), of which this is
+        ``rank``; place: where the mesh sits in the whole one (an MPI rank's piece; default: the mesh
+        is whole); nodes: the registry's nodes, the whole mesh's ids of every group's cells' nodes on
+        every rank (default: those of every_cell)."""
         self.groups = groups
         self.dim = dim
+        self.place = place
         cells = every_cell if every_cell is not None else [g.cells for g in groups]
-        self.nodes = np.unique(np.concatenate([np.asarray(c).ravel() for c in cells]))
+        if nodes is None:
+            nodes = np.unique(np.concatenate([self._whole(np.asarray(c)).ravel() for c in cells]))
+        self.nodes = np.asarray(nodes, dtype=np.int64)  # whole mesh ids, ascending
         self.exchange: Exchange = exchange if exchange is not None else Alone()
         self.distributed = exchange is not None
         self.rank = rank
@@ -72,13 +83,14 @@ class EnrichmentRegistry:
         self.crack_of = np.full(self.nodes.size, -1)
         self.version = 0
         self.dirty = False
-        self.side_cells: dict[tuple[int, ...], list[int]] = {}
+        self.side_cells: dict[tuple[int, ...], list[int]] = {}  # by the sides' whole mesh nodes: whole cell ids
         local = cell_sides(mesh_cells, dim)
-        for c, conn in enumerate(mesh_cells.tolist()):
+        whole_cells = place.cells if place is not None else np.arange(mesh_cells.shape[0])
+        for c, conn in zip(whole_cells.tolist(), self._whole(mesh_cells).tolist()):
             for side in local:
                 self.side_cells.setdefault(side_key(conn[a] for a in side), []).append(c)
         # every cut cell (any rank's): its owner here (group, local cell; -1, -1 on another rank), its
-        # crack id, the sides it crosses with the crack's traces on them, its mesh nodes
+        # crack id, the sides it crosses with the crack's traces on them, its mesh nodes (whole ids)
         self.cut: dict[int, tuple[int, int, int]] = {}
         self.cut_sides: dict[int, list[tuple[tuple[int, ...], np.ndarray]]] = {}
         self.cut_nodes: dict[int, tuple[int, ...]] = {}
@@ -88,6 +100,20 @@ class EnrichmentRegistry:
         self._restored: set[int] = set()
         self._pending: dict[int, tuple[int, int]] = {}  # own cuts not announced yet (several ranks)
 
+    def _whole(self, nodes: np.ndarray) -> np.ndarray:
+        """The whole mesh's ids of mesh nodes (any shape)."""
+        return nodes if self.place is None else self.place.nodes[nodes]
+
+    def _piece(self, nodes: tuple[int, ...]) -> tuple[int, ...]:
+        """Nodes by whole mesh id in the mesh's own numbering."""
+        if self.place is None:
+            return nodes
+        return tuple(int(v) for v in np.searchsorted(self.place.nodes, nodes))
+
+    def _crossed(self, group, local: int) -> list[tuple[tuple[int, ...], np.ndarray]]:
+        """A group's cut cell's crossed sides, their nodes by whole mesh id."""
+        return [(tuple(int(v) for v in self._whole(np.asarray(n))), t) for n, t in group.crossed_sides(local)]
+
     # -- numbering ----------------------------------------------------------------------------
     @property
     def size(self) -> int:
@@ -95,12 +121,12 @@ class EnrichmentRegistry:
         return self.dim * self.nodes.size
 
     def index(self, nodes: np.ndarray) -> np.ndarray:
-        """The registry's index of mesh nodes (any shape)."""
+        """The registry's index of nodes by their whole mesh ids (any shape)."""
         return np.searchsorted(self.nodes, nodes)
 
     def dofs(self, cells: np.ndarray) -> np.ndarray:
         """The q unknowns (n_el, dim k) of cells (n_el, k) of mesh nodes, node by node."""
-        i = self.index(cells)
+        i = self.index(self._whole(cells))
         q = self.offset + self.dim * i[..., None] + np.arange(self.dim)
         return self._local(q.reshape(cells.shape[0], self.dim * cells.shape[1]))
 
@@ -121,33 +147,35 @@ class EnrichmentRegistry:
         if self.distributed:
             self._pending[gcell] = (self.groups.index(group), local)
             return
-        self._enter(gcell, group.crossed_sides(local), group.cells[local], float(group.wdet[local].sum()),
+        sides = self._crossed(group, local)
+        volume = float(group.wdet[local].sum())
+        self._enter(gcell, sides, self._whole(group.cells[local]), self._joins(gcell, sides, volume),
                     (self.groups.index(group), local))
 
     def announce(self, gcell: int) -> None:
-        """Every rank: enter the cut of mesh cell gcell as its owner made it (a collective call; one
-        process: nothing, the cut was entered when it was made)."""
+        """Every rank: enter the cut of mesh cell gcell as its owner made it, joined to the cracks the
+        owner finds it continues (a collective call; one process: nothing, the cut was entered when it
+        was made)."""
         if not self.distributed:
             return
         own = self._pending.pop(gcell, None)
         mine = None
         if own is not None:
             g = self.groups[own[0]]
-            mine = (g.crossed_sides(own[1]), g.cells[own[1]].copy(), float(g.wdet[own[1]].sum()))
+            sides = self._crossed(g, own[1])
+            mine = (sides, self._whole(g.cells[own[1]]).copy(), self._joins(gcell, sides, float(g.wdet[own[1]].sum())))
         held = [v for v in self.exchange.allgather(mine) if v is not None]
         if len(held) != 1:
             raise RuntimeError(f"cell {gcell} is cut on {len(held)} ranks, not one")
-        sides, cell_nodes, volume = held[0]
-        self._enter(gcell, sides, cell_nodes, volume, own)
+        sides, cell_nodes, joins = held[0]
+        self._enter(gcell, sides, cell_nodes, joins, own)
 
-    def _enter(self, gcell: int, sides: list, cell_nodes: np.ndarray, volume: float,
-               own: tuple[int, int] | None) -> None:
-        """Enter a cut: its crack is a new one, joined to that of every cut neighbour whose crack
-        crosses a shared side along the same trace (the crack it continues; the cells of a crack
-        given in advance are cut in any order, so two of its pieces meet there). The owner's group
-        keeps the cut's order and crack (checkpointed)."""
-        crack = self._new_crack()
+    def _joins(self, gcell: int, sides: list, volume: float) -> list[int]:
+        """The crack ids of the cut neighbours whose crack crosses a side of cell gcell along the same
+        trace (the crack it continues; the cells of a crack given in advance are cut in any order, so
+        two of its pieces meet there)."""
         size = volume ** (1.0 / self.dim)
+        out = []
         for nodes, trace in sides:
             key = side_key(nodes)
             for other in self.side_cells.get(key, []):
@@ -155,7 +183,16 @@ class EnrichmentRegistry:
                     continue
                 for o_nodes, o_trace in self.cut_sides[other]:
                     if side_key(o_nodes) == key and _same_trace(trace, o_trace, 1e-9 * size):
-                        self._join(crack, self.cut[other][2])
+                        out.append(self.cut[other][2])
+        return out
+
+    def _enter(self, gcell: int, sides: list, cell_nodes: np.ndarray, joins: list[int],
+               own: tuple[int, int] | None) -> None:
+        """Enter a cut (sides and nodes by whole mesh id): its crack is a new one, joined to the cracks
+        ``joins``. The owner's group keeps the cut's order and crack (checkpointed)."""
+        crack = self._new_crack()
+        for other in joins:
+            self._join(crack, other)
         self.cut[gcell] = (own[0], own[1], crack) if own is not None else (-1, -1, crack)
         self.cut_sides[gcell] = [(tuple(int(v) for v in n), np.asarray(t)) for n, t in sides]
         self.cut_nodes[gcell] = tuple(int(v) for v in cell_nodes)
@@ -198,9 +235,8 @@ class EnrichmentRegistry:
         mine = []
         for gi, g in enumerate(self.groups):
             for e in np.flatnonzero(g.cut_serial >= 0).tolist():
-                mine.append((int(g.cut_serial[e]), int(g.whole_ids[e]), int(g.crack_of_cell[e]),
-                             g.crossed_sides(e),
-                             tuple(int(v) for v in g.cells[e]), (gi, e)))
+                mine.append((int(g.cut_serial[e]), int(g.whole_ids[e]), int(g.crack_of_cell[e]), self._crossed(g, e),
+                             tuple(int(v) for v in self._whole(g.cells[e])), (gi, e)))
         cuts = sorted((c if k == self.rank else c[:5] + (None,)  # another rank's cut has no owner here
                        for k, part in enumerate(self.exchange.allgather(mine)) for c in part), key=lambda c: c[0])
         self.cut = {gcell: ((own[0], own[1], crack) if own is not None else (-1, -1, crack))
@@ -217,7 +253,9 @@ class EnrichmentRegistry:
 
     def refresh(self) -> int:
         """Recompute which nodes carry which crack's enrichment (module doc) if a cell was cut since;
-        returns the version (it grows at every change)."""
+        returns the version: it grows at every change, and on several MPI ranks at every new cut (a
+        rank decides the nodes of its own cells only, so what changes differs from rank to rank
+        where the cuts do not)."""
         if not self.dirty:
             return self.version
         enriched = np.zeros_like(self.enriched)
@@ -244,14 +282,14 @@ class EnrichmentRegistry:
         changed = not (np.array_equal(enriched, self.enriched) and np.array_equal(crack_of, self.crack_of))
         self.enriched, self.crack_of = enriched, crack_of
         self.dirty = False
-        if changed:
+        if changed or self.distributed:
             self.version += 1
         return self.version
 
     def enrichment_of(self, group) -> np.ndarray:
         """(n_el, k) 0/1: where a node of a group's cell carries the enrichment of the cell's own crack
         (cut cells; 0 elsewhere)."""
-        idx = self.index(group.cells)
+        idx = self.index(self._whole(group.cells))
         crack_cell = np.array([self.find(int(c)) if c >= 0 else -1 for c in group.crack_of_cell])
         enr = self.enriched[idx] & (self.crack_of[idx] == crack_cell[:, None]) & (crack_cell[:, None] >= 0)
         return enr.astype(float)
@@ -261,8 +299,11 @@ class EnrichmentRegistry:
         q's in the model's numbering; an MPI rank's: those of its local dofs)."""
         dirichlet = np.asarray(dirichlet, dtype=np.int64)
         if self.numbering is not None:
-            dirichlet = self.numbering.global_(dirichlet)
+            dirichlet = self.numbering.global_(dirichlet)  # on the mesh's (a piece's) nodes
         node, comp = np.divmod(dirichlet, self.dim)
+        if self.place is not None:  # the piece's nodes by whole mesh id (none of them: an extra dof)
+            mesh_node = node < self.place.nodes.size
+            node = np.where(mesh_node, self.place.nodes[np.where(mesh_node, node, 0)], -1)
         i = np.searchsorted(self.nodes, node)
         inside = (i < self.nodes.size)
         inside[inside] = self.nodes[i[inside]] == node[inside]
@@ -279,7 +320,7 @@ class EnrichmentRegistry:
         out = np.zeros(n_dofs)
         if not self.cut or sides.size == 0:
             return out
-        load = {side_key(nodes): (nodes, tractions[k]) for k, nodes in enumerate(sides.tolist())}
+        load = {side_key(nodes): (nodes, tractions[k]) for k, nodes in enumerate(self._whole(sides).tolist())}
         for gcell in self.cut_order:
             gi, e, crack = self.cut[gcell]
             if gi < 0:
@@ -292,8 +333,8 @@ class EnrichmentRegistry:
                     continue  # not a loaded boundary side
                 order, t = load[key]
                 at_nodes = t[[order.index(v) for v in nodes]]  # in the order of ``nodes``
-                for node, weights in g.split_side(e, nodes).items():
-                    i = int(self.index(np.array(node)))
+                for node, weights in g.split_side(e, self._piece(nodes)).items():
+                    i = int(self.index(self._whole(np.array(node))))
                     if not self.enriched[i] or self.crack_of[i] != crack:
                         continue
                     dofs = self._local(self.offset + self.dim * i + np.arange(self.dim))

@@ -331,11 +331,17 @@ class _EnrichedLoads:
         self.model = model
         self.stages = stages
         first = stages[0] if stages else None
-        at_start = first is not None and ((first.start_edges is not None and first.start_edges.size > 0)
-                                          or _loaded(first.start_body_force))
-        self.f0 = f0 if at_start else None
-        self.active = model.enrichment_version() is not None and (self.f0 is not None or any(
-            (s.surface_edges is not None and s.surface_edges.size) or _loaded(s.body_force) for s in stages))
+
+        def anywhere(flag) -> bool:  # on any MPI rank: each holds the loaded sides of its piece only
+            return bool(model.reduce_max(1.0 if flag else 0.0))
+
+        self.sides = [anywhere(s.surface_edges is not None and s.surface_edges.size) for s in stages]
+        self.bodies = [anywhere(_loaded(s.body_force)) for s in stages]
+        self.start_sides = first is not None and anywhere(first.start_edges is not None and first.start_edges.size)
+        self.start_body = first is not None and anywhere(_loaded(first.start_body_force))
+        self.f0 = f0 if self.start_sides or self.start_body else None
+        self.active = model.enrichment_version() is not None and (self.f0 is not None or any(self.sides)
+                                                                  or any(self.bodies))
         self.own = [s.f_ext_end.copy() for s in stages] if self.active else []
         self.own0 = self.f0.copy() if self.active and self.f0 is not None else None
         self.seen: tuple[int, ...] | None = None
@@ -347,22 +353,27 @@ class _EnrichedLoads:
         if version == self.seen:
             return False
         self.seen = version
-        for stage, own in zip(self.stages, self.own):
-            stage.f_ext_end[:] = own + self._share(stage.surface_edges, stage.surface_tractions, stage.body_force)
+        for k, (stage, own) in enumerate(zip(self.stages, self.own)):
+            stage.f_ext_end[:] = own + self._share(stage.surface_edges, stage.surface_tractions, stage.body_force,
+                                                   self.sides[k], self.bodies[k])
         first = self.stages[0]
         if self.f0 is not None and self.own0 is not None:
-            self.f0[:] = self.own0 + self._share(first.start_edges, first.start_tractions, first.start_body_force)
+            self.f0[:] = self.own0 + self._share(first.start_edges, first.start_tractions, first.start_body_force,
+                                                 self.start_sides, self.start_body)
         return True
 
-    def _share(self, edges: np.ndarray | None, tractions: np.ndarray | None,
-               body: dict[str, np.ndarray] | None) -> np.ndarray | float:
-        """The enriched unknowns' share of boundary tractions and body forces (0.0: none)."""
+    def _share(self, edges: np.ndarray | None, tractions: np.ndarray | None, body: dict[str, np.ndarray] | None,
+               sides: bool, bodies: bool) -> np.ndarray | float:
+        """The enriched unknowns' share of boundary tractions and body forces (0.0: none), made where
+        some MPI rank has loaded sides (``sides``) or bodies (``bodies``): the sums are collective, and
+        a rank's piece may hold none of the loaded sides."""
         out: np.ndarray | float = 0.0
-        if edges is not None and tractions is not None and edges.size:
+        if sides:
+            if edges is None or tractions is None or not edges.size:
+                edges, tractions = np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2, self.model.dim))
             out = out + self.model.enriched_surface_forces(edges, tractions)
-        if _loaded(body):
-            assert body is not None
-            out = out + self.model.enriched_body_forces(body)
+        if bodies:
+            out = out + self.model.enriched_body_forces(body or {})
         return out
 
 

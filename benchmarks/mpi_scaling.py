@@ -24,7 +24,9 @@ solves), Newton iterations, the largest resident memory of a rank. Machine and l
 with every row; results go to ``benchmarks/results/mpi_scaling.json`` and the "MPI scaling" table
 of ``benchmarks/README.md``. ``--quick``: small sizes, prints only. ``--held``: set-up only, on 2
 ranks, the arrays each rank's mesh, partition and layout hold (a rank's piece of the mesh), for 2d,
-3d and **embedded** (2d with tracked embedded cracks: the cells its crack-path registry sees).
+3d, **embedded** (2d with tracked embedded cracks: the cells its crack-path registry sees) and
+**nodal** (the same with nodal embedded cracks, half the cells: each node has its two enrichment
+unknowns; the sides its enrichment registry knows).
 """
 
 from __future__ import annotations
@@ -66,6 +68,14 @@ def case_embedded(dofs: float) -> dict:
     case["embedded"] = {"c_p": "eq28", "c_r": 0.0, "phi_p": 0.5236, "phi_r": 0.0, "psi_p": 0.087, "alpha_c": 5e3,
                         "alpha_phi": 5e3, "alpha_psi": 5e3, "tracking": "local"}
     case["solver"] = {"linear": "petsc"}
+    return case
+
+
+def case_nodal(dofs: float) -> dict:
+    """case_embedded with nodal cracks: half its cells, so that with the enrichment unknowns (two a
+    node) the model has about ``dofs`` unknowns (set-up only: ``--held``)."""
+    case = case_embedded(dofs / 2)
+    case["embedded"].update(kinematics="nodal", kn=1e10, kt=1e10)
     return case
 
 
@@ -235,21 +245,25 @@ def held_child(problem: str, dofs: float, out: Path) -> None:
     from mpi4py import MPI
 
     from rockfrac.case.schema import parse_case
+    from rockfrac.elements.ede_nodal import NodalEmbeddedDruckerPrager
     from rockfrac.parallel.run import build_distributed
 
     comm = MPI.COMM_WORLD
     folder = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None, root=0))
     case = None
     if comm.rank == 0:
-        make = {"2d": case_2d, "embedded": case_embedded}.get(problem)
+        make = {"2d": case_2d, "embedded": case_embedded, "nodal": case_nodal}.get(problem)
         case = make(dofs) if make is not None else case_3d(dofs, folder)
     built = build_distributed(parse_case(comm.bcast(case, root=0), problem), comm)
     seen: set = set()
     layout = built.model.layout  # type: ignore[attr-defined]
     paths = {id(g.paths): g.paths for g in built.embeddeds}.values()  # the crack-path registry
+    registries = {id(g.registry): g.registry for g in built.embeddeds  # the nodal cracks' enrichment registry
+                  if isinstance(g, NodalEmbeddedDruckerPrager)}.values()
     mine = {"rank": comm.rank, "piece_cells": built.mesh.cells.shape[0],
             "crack_cells_seen": sum(p.owner.shape[0] for p in paths),
             "crack_neighbour_lists": sum(len(p.nbr) for p in paths),
+            "enrichment_sides": sum(len(r.side_cells) for r in registries),
             "mesh_mib": _nbytes(built.mesh, seen) / 2**20,
             "partition_mib": _nbytes(built.partition, seen) / 2**20,
             "layout_mib": _nbytes({k: v for k, v in vars(layout).items() if isinstance(v, np.ndarray)}, seen) / 2**20,
@@ -268,7 +282,7 @@ def main() -> None:
     ap.add_argument("--problems", nargs="+", default=["2d", "3d", "cohesive", "joints"])
     ap.add_argument("--timeout", type=float, default=3600.0)
     ap.add_argument("--held", action="store_true", help="2 ranks, set-up only: the arrays of each rank's "
-                    "mesh, partition and layout, and its peak after set-up (2d, 3d, embedded)")
+                    "mesh, partition and layout, and its peak after set-up (2d, 3d, embedded, nodal)")
     ap.add_argument("--held-child", nargs=3, metavar=("PROBLEM", "DOFS", "OUT"))
     args = ap.parse_args()
     if args.child:
@@ -279,7 +293,7 @@ def main() -> None:
         return
     if args.held:
         env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-        for problem in [p for p in args.problems if p in ("2d", "3d", "embedded")]:
+        for problem in [p for p in args.problems if p in ("2d", "3d", "embedded", "nodal")]:
             out = Path(tempfile.mkdtemp()) / "held.json"
             subprocess.run([shutil.which("mpiexec") or "mpiexec", "-n", "2", sys.executable, str(Path(__file__).resolve()),
                             "--held-child", problem, str(1e6 / 50 if args.quick else 1e6), str(out)], env=env,

@@ -204,20 +204,26 @@ def test_general_3d_refusals(tmp_path):
             parse_case(dict(case, embedded=dict(case["embedded"], cracks=[crack])))
 
 
-def test_the_hemisphere_screen_bounds_the_3d_search_from_above():
-    """screen_sphere: an upper bound of localization_3d's minimum, within the grid's resolution, at
-    random stresses on and off the plane-strain axes."""
+@pytest.mark.parametrize("beta, b, nu", [(0.5, 0.1, 0.3), (0.480385, 0.321597, 0.3), (0.3, 0.0, 0.2)])
+def test_the_closed_form_3d_minimum_is_the_sphere_searchs(beta, b, nu):
+    """min_ratios_dp_3d (the rank-one tangent's minimum over the normals, in closed form on the
+    principal stresses' simplex) equals localization_3d's minimum (a 60 x 120 sweep of the sphere,
+    each basin refined by Newton) to 1e-12 at random stresses, on and off the principal axes, at
+    axisymmetric ones (a cone of normals) and near the apex; and a state that does not localize
+    (positive minimum) and one that does (negative) are both met."""
     from rockfrac.laws import bifurcation as bf
-    from rockfrac.laws.bifurcation_sphere import screen_sphere
+    from rockfrac.laws.bifurcation_dp3d import min_ratios_dp_3d
     from rockfrac.laws.drucker_prager_params import DruckerPrager
 
-    law = DruckerPrager(E=1.5e7, nu=0.3, beta=0.5, b=0.1, kappa0=1.3e4)
+    law = DruckerPrager(E=1.5e7, nu=nu, beta=beta, b=b, kappa0=1.3e4)
     rng = np.random.default_rng(3)
-    sig = np.column_stack([rng.uniform(-9e4, -1e4, (12, 3)), rng.uniform(-2e4, 2e4, (12, 3))])
-    screened = screen_sphere(sig, law.as_array(), law.elastic_matrix(), 12, 48)
-    exact = np.array([bf.localization_at(law, s, plane_strain=False).min_ratio for s in sig])
-    assert np.all(screened >= exact - 1e-12)
-    assert np.all(screened - exact < 0.02)
+    sig = np.vstack([np.column_stack([rng.uniform(-9e4, -1e4, (40, 3)), rng.uniform(-2e4, 2e4, (40, 3))]),
+                     [[-5e4, -5e4, -9e4, 0, 0, 0], [-9e4, -5e4, -5e4, 0, 0, 0], [-3e4, -6e4, -9e4, 0, 0, 0],
+                      [-3e4, -6e4, -9e4, 1e4, -2e4, 5e3], [-1e4, -1e4, -1e4, 1.0, 0, 0]]])
+    closed = min_ratios_dp_3d(sig, law.as_array())
+    searched = np.array([bf.localization_at(law, s, plane_strain=False).min_ratio for s in sig])
+    np.testing.assert_allclose(closed, searched, rtol=0, atol=1e-12)
+    assert closed.min() < 0.0 < closed.max()
 
 
 def test_tetrahedra_with_embedded_cracks_are_refused(tmp_path):

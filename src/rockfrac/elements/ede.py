@@ -23,7 +23,7 @@ from rockfrac.elements.ede_paths import (
 from rockfrac.fem.planes import in_plane_direction
 from rockfrac.laws.bifurcation import localization_at, min_ratios_plane_strain
 from rockfrac.laws.bifurcation_plane import screen_plane_strain
-from rockfrac.laws.bifurcation_sphere import screen_sphere
+from rockfrac.laws.bifurcation_dp3d import min_ratios_dp_3d
 from rockfrac.laws.drucker_prager_params import MODE_CONE, S_MODE
 from rockfrac.mesh.geometry import surface_segment
 
@@ -87,7 +87,6 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         return cells[~self.deferred[cells]]
 
     SCREEN_SWEEP = 90  # in-plane normals of the compiled screen (plane strain)
-    SCREEN_POLAR, SCREEN_AZIMUTH = 12, 48  # the compiled screen's hemisphere grid (general 3D)
     SCREEN_MARGIN = 0.05  # points whose screened ratio is below this get the exact search
 
     def _scan(self, state: np.ndarray, sigma: np.ndarray, eligible: np.ndarray | None = None,
@@ -98,7 +97,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         Plane strain: a compiled sweep screens every point; the exact search (localization_at) runs
         at the lowest screened point overall (the returned minimum, exact where it can be near zero)
         and, if exact_cells, at the lowest point of every eligible cell (default: all) screened below
-        SCREEN_MARGIN -- where an onset can happen.
+        SCREEN_MARGIN -- where an onset can happen. General 3D: every point's minimum is exact, in
+        closed form (rockfrac.laws.bifurcation_dp3d). The full Localization (normals, slips) is made
+        only where a cell can open now.
         """
         cells = self._candidates(state)
         tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
@@ -122,12 +123,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             ce, qi = np.nonzero(qmask)
             e_of = cells[ce]
         if e_of.size:
-            if not self.plane_strain:  # 3D: a compiled screen over the hemisphere
-                screened = screen_sphere(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
-                                         self.SCREEN_POLAR, self.SCREEN_AZIMUTH)
-            else:
-                screened = screen_plane_strain(np.ascontiguousarray(sigma[e_of, qi]), self.p, self.ce,
-                                               self.SCREEN_SWEEP)
+            points = np.ascontiguousarray(sigma[e_of, qi])
+            screened = (screen_plane_strain(points, self.p, self.ce, self.SCREEN_SWEEP) if self.plane_strain
+                        else min_ratios_dp_3d(points, self.p))  # 3D: the exact minima
         lowest_point = self._global_lowest(screened, e_of, qi)
         if e_of.size == 0:
             return 1.0, {}
@@ -144,20 +142,18 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         picks = sorted(chosen)
         where: dict[int, tuple] = {}
         best = float(screened.min())
-        if self.plane_strain:  # the exact minima of all picks in one compiled pass; the full
-            # Localization (normals, slips) only where a cell can open now
-            ratios = min_ratios_plane_strain(self.law, sigma[e_of[picks], qi[picks]])
-        else:
-            locs = [localization_at(self.law, sigma[int(e_of[k]), int(qi[k])], plane_strain=False) for k in picks]
-            ratios = np.array([loc.min_ratio for loc in locs])
+        # the exact minima of all picks in one compiled pass (3D: the screen's); the full Localization
+        # (normals, slips) only where a cell can open now
+        ratios = (min_ratios_plane_strain(self.law, sigma[e_of[picks], qi[picks]]) if self.plane_strain
+                  else screened[picks])
         for n_pick, k in enumerate(picks):
             e, q, ratio = int(e_of[k]), int(qi[k]), float(ratios[n_pick])
             best = min(best, ratio) if k == lowest_point else best
             if screened[k] <= self.SCREEN_MARGIN and ratio < where.get(e, (np.inf,))[0]:
-                where[e] = (ratio, q, None if self.plane_strain else locs[n_pick])
+                where[e] = (ratio, q, None)
         for e, (ratio, q, loc) in where.items():
             if loc is None and ratio <= self.onset_tol:
-                where[e] = (ratio, q, localization_at(self.law, sigma[e, q], plane_strain=True))
+                where[e] = (ratio, q, localization_at(self.law, sigma[e, q], plane_strain=self.plane_strain))
         if where:
             best = min(best, min(v[0] for v in where.values()))
         return best, where

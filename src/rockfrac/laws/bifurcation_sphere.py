@@ -1,17 +1,14 @@
-"""3D bifurcation kernels: local minima of det A / det A^e over the unit sphere (sweep, Newton), and
-a coarse screen of many points."""
+"""3D bifurcation kernels: local minima of det A / det A^e over the unit sphere (sweep, Newton). The
+Drucker-Prager minimum at many points is rockfrac.laws.bifurcation_dp3d's closed form."""
 
 from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from rockfrac.compiled import inner, kernel
-from rockfrac.laws import drucker_prager as dp
-from rockfrac.laws.acoustic import _ratio, _ratio_grad, elastic_dets, lowest_ratio
-from rockfrac.threads import parallel_kernel
+from rockfrac.laws.acoustic import _ratio, _ratio_grad
 
 # --------------------------------------------------------------------------------------------
 # 3D: sweep over the sphere, then Newton on the tangent plane (analytic gradient, FD Hessian)
@@ -178,31 +175,3 @@ def _sphere_candidates(c, ce, n_polar, n_azimuth, cand):
             cand[0, k] = pt[k]
         count = 1
     return count
-
-
-@parallel_kernel(cost=4e-5)  # s per item, one thread (an estimate: the grid, then a Newton refinement)
-def screen_sphere(sigma, p, ce, n_polar, n_azimuth):
-    """Min of det A / det A^e (eq. 7-8, f and g of the Drucker-Prager law at each stress) over the unit
-    normals, for many points: sigma (n, 6) [Pa] -> (n,). A grid over the upper hemisphere (n and -n
-    are one band: n_polar levels over (0, pi/2], n_azimuth over [0, 2 pi)), then the grid's lowest
-    normal refined by Newton on the sphere (:func:`_refine_sphere`): the minimum of that basin, a
-    bound from above of the global one (another basin may be lower between grid points: refine
-    with localization_3d where it is small). The normals and det A^e(n) are computed once."""
-    n = sigma.shape[0]
-    out = np.empty(n)
-    normals = np.zeros((n_polar * n_azimuth, 3))
-    for i in range(n_polar):
-        th = 0.5 * math.pi * (i + 1.0) / n_polar
-        for j in range(n_azimuth):
-            ph = 2.0 * math.pi * j / n_azimuth
-            normals[i * n_azimuth + j] = (math.sin(th) * math.cos(ph), math.sin(th) * math.sin(ph), math.cos(th))
-    det_e = elastic_dets(ce, normals)
-    n_chunks = max(1, min(n, 256))
-    for ch in nb.prange(n_chunks):
-        ai = np.empty((3, 3))
-        ci = np.empty((3, 3))
-        for i in range(ch * n // n_chunks, (ch + 1) * n // n_chunks):
-            c = dp.perfectly_plastic_tangent(ce, dp.yield_gradient(sigma[i], p), dp.potential_gradient(sigma[i], p))
-            best, k_best = lowest_ratio(c, normals, det_e, ai, ci)
-            out[i] = min(best, _ratio(c, ce, _refine_sphere(c, ce, normals[k_best])))  # the grid's basin, refined
-    return out

@@ -176,6 +176,48 @@ def test_the_band_balances_its_energy(band):
     assert 0.0 < h["D_surface_law"][-1] < h["D_dissipated"][-1]
 
 
+def test_a_crack_runs_as_far_as_the_load_drives_it_before_the_load_moves(band):
+    """A commit whose cuts leave a cell at a new tip waiting for the stress they make is followed by a
+    hold (rockfrac.solve.stepping): equilibrium at the same load factor, a step of its own in
+    history.csv ("hold"), where the cuts only relax the force; the waiting cell opens there if that
+    stress drives it, so how far the crack runs at a load no longer depends on the next step's size."""
+    out, s = band
+    h = read_csv(out / "history.csv")
+    hold = np.flatnonzero(h["control"] == "hold")
+    assert hold.size >= 1 and np.all(hold > 0)
+    assert np.all(h["load_factor"][hold] == h["load_factor"][hold - 1])
+    assert np.all(h["u_axial"][hold] == h["u_axial"][hold - 1])
+    assert np.all(h["F_axial"][hold] <= h["F_axial"][hold - 1] * (1.0 + 1e-12))
+
+
+def test_a_tip_event_is_located_on_the_trial_stress(band):
+    """The nonlocal stress at a crack tip is the committed one at a commit and the step's trial one in
+    the step's event indicator, so shortening a step moves the indicator and the step lands on the
+    tip's onset (with the committed stress in both, the indicator did not move, the step was cut
+    by 0.9 again and again and a step of 0.85 mm went past the onset)."""
+    out, s = band
+    g = s.built.embeddeds[0]
+    paths, length = g.paths, g.tracking_length
+    point = np.array([0.5 * W, 0.04])
+    committed = paths.nonlocal_stress(point, length)
+    saved = [e.trial_sigma.copy() for e in paths.groups]
+    try:
+        for e in paths.groups:
+            e.trial_sigma[:] = 2.0 * e.sigma + 1.0
+        assert np.allclose(paths.nonlocal_stress(point, length, trial=True), 2.0 * committed + 1.0, rtol=1e-12)
+        assert np.allclose(paths.nonlocal_stress(point, length), committed, rtol=0.0, atol=0.0)
+    finally:
+        for e, t in zip(paths.groups, saved):
+            e.trial_sigma[:] = t
+    landed = []  # (step's log line index, trial value) of each shortening in the run
+    for line in (out / "run.log").read_text().splitlines():
+        if "event indicator" in line:
+            landed.append(line.split("->")[1].split()[0])
+        elif line.startswith("step "):
+            assert len(landed) == len(set(landed)), landed  # every shortening moved the indicator
+            landed = []
+
+
 def test_a_grown_band_on_unstructured_triangles(tmp_path):
     """On an unstructured Gmsh triangle mesh (3 mm) the band's path is continuous, crosses to the right
     edge within 3 degrees of its bifurcation angle over the first three quarters of the width, and

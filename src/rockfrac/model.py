@@ -247,6 +247,11 @@ class Model:
             return None
         return min(p[0] for p in pairs), min(p[1] for p in pairs)
 
+    def growth_waiting(self) -> bool:
+        """True if a group, on any rank, has cells waiting for the equilibrium after the last commit's
+        cuts (:meth:`rockfrac.elements.base.Group.growth_waiting`)."""
+        return self.reduce_any(any([g.growth_waiting() for g in self.groups]))
+
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:
         """Residual and consistent tangent at u (trial state from the committed one at u_n)."""
         self.refresh_structure()

@@ -164,6 +164,11 @@ class ElementGroup(ABC):
         """The event indicator of the committed state (None: no events)."""
         return None
 
+    def growth_waiting(self) -> bool:
+        """True if cells made ready at the last commit wait for the stress after that commit's cuts
+        (an embedded crack's new tips); the stepping then re-solves at the same load first."""
+        return False
+
     def event_log(self) -> list[str]:
         """One line per event so far (e.g. "bifurcation: ..."), in order; the log prints the new ones."""
         return []

@@ -63,24 +63,30 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         """Min det A / det A^e (eq. 7-8) over the trial (converged, uncommitted) plastic points of
         cells that may still localize; 1 if there are none."""
         if not self.tip_events:
-            return self._scan(self.trial, self.trial_sigma, exact_cells=False)[0]
-        return self._scan(self.trial, self.trial_sigma, self._eligible(), exact_cells=False)[0]
+            return self._scan(self.trial, self.trial_sigma, exact_cells=False, trial=True)[0]
+        return self._scan(self.trial, self.trial_sigma, self._eligible(), exact_cells=False, trial=True)[0]
+
+    def growth_waiting(self) -> bool:
+        """True if elastic cells at tips made by the last commit wait for the stress after its cuts
+        (tip events only: the nodal crack)."""
+        return bool(self.deferred.any())
 
     #: the event indicator over the cells that may open next only (:meth:`_eligible`), so that every
     #: crack tip's onset is located; the elemental EDE keeps its first version's (every candidate)
     tip_events = False
 
-    def _eligible(self) -> np.ndarray | None:
+    def _eligible(self, waiting: bool = False) -> np.ndarray | None:
         """The cells that may open next: every one (None) while a new crack may start, else the crack
         tips (a cell beside a crack waits for its tip, so it is no event); with tip events, less the
         cells that were ready at the last commit but wait a step (tracking: an elastic cell at a tip
-        made in that step), which open at the next commit whatever the step does."""
+        made in that step): they are no event of the next step, which is a hold at the same load
+        (rockfrac.solve.stepping), and its commit takes them again (``waiting``: with them)."""
         if self.tracking == "none":
             return None
         cells = self._tip_cells() if self.paths.cracks >= self.max_cracks else None
         if not self.tip_events:
             return cells
-        if not self.deferred.any():
+        if waiting or not self.deferred.any():
             return cells
         if cells is None:
             cells = np.arange(self.cells.shape[0])
@@ -90,7 +96,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
     SCREEN_MARGIN = 0.05  # points whose screened ratio is below this get the exact search
 
     def _scan(self, state: np.ndarray, sigma: np.ndarray, eligible: np.ndarray | None = None,
-              exact_cells: bool = True):
+              exact_cells: bool = True, trial: bool = False):
         """Min det ratio over the plastic points of cells that may localize, and per such cell its
         lowest (ratio, point, Localization).
 
@@ -99,14 +105,15 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         and, if exact_cells, at the lowest point of every eligible cell (default: all) screened below
         SCREEN_MARGIN -- where an onset can happen. General 3D: every point's minimum is exact, in
         closed form (rockfrac.laws.bifurcation_dp3d). The full Localization (normals, slips) is made
-        only where a cell can open now.
+        only where a cell can open now. trial: state and sigma are the step's trial ones (the nonlocal
+        stress at the tips is then the trial one too).
         """
         cells = self._candidates(state)
         tips = self._tip_cells() if self.tracking != "none" else np.zeros(0, dtype=np.int64)
         cells = np.union1d(cells, tips).astype(np.int64)
         if eligible is not None and self.tip_events:  # the indicator and onsets over the cells that may open
             cells = np.intersect1d(cells, eligible)
-        near = self._tip_stresses() if self.tracking == "nonlocal" else {}
+        near = self._tip_stresses(trial) if self.tracking == "nonlocal" else {}
         e_of, qi, screened = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
         if cells.size:
             qmask = state[cells, :, S_MODE] == MODE_CONE
@@ -158,11 +165,11 @@ class EmbeddedDruckerPrager(EmbeddedCells):
             best = min(best, min(v[0] for v in where.values()))
         return best, where
 
-    def _tip_stresses(self) -> dict[int, np.ndarray]:
+    def _tip_stresses(self, trial: bool = False) -> dict[int, np.ndarray]:
         """The nonlocal stress at the tip point of every crack-tip cell of the group (any rank's, by
         whole mesh id; a collective call, one per tip in the serial order)."""
         paths = self.paths
-        return {gcell: paths.nonlocal_stress(point, self._nonlocal_length())
+        return {gcell: paths.nonlocal_stress(point, self._nonlocal_length(), trial)
                 for gcell, point in paths.tips_everywhere(self)}
 
     def _global_lowest(self, screened: np.ndarray, e_of: np.ndarray, qi: np.ndarray) -> int | None:
@@ -197,7 +204,7 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         paths = self.paths
         if self.tracking != "none":
             paths.current()
-        best, where = self._scan(self.state, self.sigma, self._eligible())
+        best, where = self._scan(self.state, self.sigma, self._eligible(waiting=True))
         ready = sorted((ratio, e) for e, (ratio, q, loc) in where.items() if ratio <= self.onset_tol)
         if self.tracking == "none":
             for ratio, e in ready:

@@ -293,18 +293,19 @@ class CrackPaths:
         every = sorted((c for part in self.exchange.allgather(mine) for c in part), key=lambda c: c[0])
         return [(gcell, point) for _, gcell, point in every]
 
-    def nonlocal_stress(self, point: np.ndarray, length: float) -> np.ndarray:
+    def nonlocal_stress(self, point: np.ndarray, length: float, trial: bool = False) -> np.ndarray:
         """The nonlocal stress (6,) [Pa] at ``point`` (a crack tip): the average of the uncut cells'
         stresses with the Gaussian weight exp(-r^2 / (2 length^2)) of their centroids' distance r to
-        the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close. On
-        several MPI ranks, a collective call: the sums over every rank's cells."""
+        the point (Wells & Sluys 2001), cut off at 3 length; NaN if no uncut cell is that close; the
+        committed stresses, or the step's trial ones (``trial``). On several MPI ranks, a collective
+        call: the sums over every rank's cells."""
         x = np.asarray(point, dtype=float)[:self.nodes.shape[1]]
         total, weight = np.zeros(6), 0.0
         for g, centre in zip(self.groups, self.centres):
             r2 = ((centre - x) ** 2).sum(axis=1)
             near = np.flatnonzero((r2 <= 9.0 * length**2) & (g.e_state[:, K.E_LOC] == 0.0))
             w = np.exp(-r2[near] / (2.0 * length**2))
-            total += np.einsum("e,eq,eqi->i", w, g.wdet[near], g.sigma[near])
+            total += np.einsum("e,eq,eqi->i", w, g.wdet[near], (g.trial_sigma if trial else g.sigma)[near])
             weight += float(w @ g.wdet[near].sum(axis=1))
         parts = self.exchange.allgather((total, weight))  # every rank's cells (one process: its own)
         total, weight = parts[0]

@@ -16,6 +16,12 @@ Newton's iterations without an active-set change (a cohesive point switching bet
 constrained and plastic, an embedded crack between sticking and sliding). With many surfaces
 yielding, points switch in most iterations of a step whatever its size, so counting those
 iterations kept a cut-back step small for the rest of the run (benchmarks/README.md, "Step growth").
+
+A crack that grows by cells at its tips (the nodal embedded crack) may leave cells waiting for the
+stress after a commit's cuts (``Model.growth_waiting``). The next step is then a "hold": equilibrium
+at the same load factor, committed like any step, so that a crack runs as far as the load already
+applied drives it before the load moves on (otherwise how far it runs in a step is set by the step's
+size). A hold without equilibrium (a snap-back) is dropped and the stepping goes on.
 """
 
 from __future__ import annotations
@@ -192,6 +198,7 @@ def run_stages(
         refresh()
         loads = Loads(d_start, d_end - d_start, f_start, stage.f_ext_end - f_start)
         lam, cutbacks, stage_steps = 0.0, 0, 0
+        hold_failed = -1  # the step count at which the last re-solve at the same load failed
         last_size: dict[str, float] = {}  # the increment of the last converged step, by control
         path_nominal = stage.path.increment if stage.path else None
         nominal = {"load": 1.0 / stage.steps, "path": path_nominal or 0.0}
@@ -207,12 +214,19 @@ def run_stages(
                 return stopped(stage)
             committed = Committed(u, u_before, lam, loads, u_ref, f_ref)
             constraint = None
-            if stage.path is not None and (forced or stage.path.active()):
+            hold = hold_failed != count and model.growth_waiting()
+            if hold:  # cells wait for the stress after the last cuts: equilibrium at the same load first
+                mode = "hold"
+                model.set_step("load", 0.0)
+                res = newton_step(model, u, lam, lam, loads, solver, newton)
+            elif stage.path is not None and (forced or stage.path.active()):
                 constraint = stage.path.constraint(committed)  # frozen at the committed state
             if constraint is not None and path_nominal is None:
                 constraint = None  # the nominal increment comes from the first step
-            mode = "path" if constraint is not None else "load"
-            if constraint is not None:
+            if hold:
+                pass
+            elif constraint is not None:
+                mode = "path"
                 assert stage.path is not None
                 target = constraint.value(u, lam) + size["path"]
                 ctrl = PathControl(constraint.measure, target, 1e-9 * nominal["path"], size["load"],
@@ -223,6 +237,7 @@ def run_stages(
                     model.set_step("load", 1.0 - lam)
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
             else:
+                mode = "load"
                 size["load"] = min(size["load"], 1.0 - lam)
                 step = size["load"]
                 if stepping.locate_activation:
@@ -236,6 +251,11 @@ def run_stages(
             _log_iterations(log, stage.name, count + 1, res)
             if res.interrupted:
                 return stopped(stage)
+            if hold and not res.converged:
+                hold_failed = count
+                log(f"  {stage.name}: no equilibrium at load factor {lam:.6f} after the last cuts "
+                    f"({res.message}); stepping on")
+                continue
             if (not res.converged and mode == "load" and stage.path is not None and not forced
                     and (m := stage.path.constraint(committed)) is not None
                     and model.reduce_any(bool(np.any(m.measure(u)[1])))):
@@ -263,7 +283,7 @@ def run_stages(
                                      f"cutbacks ({res.message})", u)
                 continue
             implex = model.implex_error()  # IMPL-EX's error in the step: first order in its size
-            if implex is not None and implex > stepping.implex_tol:
+            if implex is not None and implex > stepping.implex_tol and not hold:
                 shrink = max(0.1, 0.8 * stepping.implex_tol / implex)
                 if size[mode] * shrink >= stepping.min_step * nominal[mode]:
                     log(f"  {stage.name}: IMPL-EX error {implex:.3g} > {stepping.implex_tol:g} in the step; "
@@ -273,7 +293,8 @@ def run_stages(
                 log(f"  {stage.name}: warning: IMPL-EX error {implex:.3g} > {stepping.implex_tol:g} in a step "
                     "at min_step; the step is kept with that error (a shorter one would be below min_step)")
             crossing = model.event()
-            if crossing is not None and crossing[0] > stepping.event_tol and crossing[1] < -stepping.event_tol:
+            if (not hold and crossing is not None and crossing[0] > stepping.event_tol
+                    and crossing[1] < -stepping.event_tol):
                 before, after = crossing  # end the step at the event: secant on the step size
                 frac = min(0.9, max(0.05, before / (before - after)))
                 if size[mode] * frac >= stepping.min_step * nominal[mode]:
@@ -284,18 +305,21 @@ def run_stages(
             model.commit()
             if refresh():  # a crack crossed into a loaded boundary's cells: its share of the loads
                 loads = Loads(loads.d0, loads.dd, f_start, stage.f_ext_end - f_start)
-            last_size = {mode: size[mode] if mode == "path" else res.lam - lam}
-            if stage.path is not None and path_nominal is None:
+            if not hold:
+                last_size = {mode: size[mode] if mode == "path" else res.lam - lam}
+            if stage.path is not None and path_nominal is None and not hold:
                 first = stage.path.constraint(Committed(res.u, u, res.lam, loads, u_ref, f_ref))
                 change = 0.0 if first is None else abs(first.value(res.u, res.lam) - first.value(u, lam))
                 if change > 0.0:  # the measure's change over a nominal load step, from the first step
                     path_nominal = change * nominal["load"] / (res.lam - lam)
                     nominal["path"] = size["path"] = path_nominal
-            u_before, u, lam = u, res.u, res.lam
+            if not hold:  # the arc length's direction stays the last load step's
+                u_before = u
+            u, lam = res.u, res.lam
             count += 1
             stage_steps += 1
             step_cutbacks, cutbacks = cutbacks, 0
-            if res.iterations - res.switching_iterations <= stepping.easy_iterations:
+            if not hold and res.iterations - res.switching_iterations <= stepping.easy_iterations:
                 grow = stepping.grow
                 if implex is not None:  # IMPL-EX: no faster than its error allows
                     grow = min(grow, 0.8 * stepping.implex_tol / max(implex, 1e-300))

@@ -52,12 +52,14 @@ def meshes(tmp: Path) -> dict[str, tuple[dict, float]]:
 KINEMATICS = {"elemental": {}, "nodal": {"kinematics": "nodal", "kn": 1e10, "kt": 1e10}}
 
 
-def run_one(mesh: dict, size: float, b: float, out: Path, crack: list | None = None, kinematics: str = "elemental"):
+def run_one(mesh: dict, size: float, b: float, out: Path, crack: list | None = None, kinematics: str = "elemental",
+            tracking_length: float | None = None):
+    """One run; tracking_length [m] defaults to 3 cell sizes."""
     from rockfrac.case.schema import parse_case
     from rockfrac.output.csvout import read_csv
     from rockfrac.runner import run_case
 
-    d = band_case({"tracking": "nonlocal", "tracking_length": 3 * size})
+    d = band_case({"tracking": "nonlocal", "tracking_length": tracking_length or 3 * size})
     d["mesh"] = mesh
     for m in d["materials"]:
         m["b"] = b
@@ -85,7 +87,8 @@ def run_one(mesh: dict, size: float, b: float, out: Path, crack: list | None = N
             "F_closed_form": closed_form(c, tphi, float(np.median(ang))), "F_peak": float(h["F_axial"].max()),
             "steps": int(s.result.steps), "completed": bool(s.result.completed), "wall_s": wall,
             "ends": [first.tolist(), last.tolist()],
-            "u": h["u_axial"].tolist(), "F": h["F_axial"].tolist()}
+            "u": h["u_axial"].tolist(), "F": h["F_axial"].tolist(), "cut": h["n_localized"].tolist(),
+            "holds": int(np.sum(h["control"] == "hold"))}
 
 
 def post_peak_gap(runs: list[dict]) -> float:

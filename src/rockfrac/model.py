@@ -248,8 +248,8 @@ class Model:
         return min(p[0] for p in pairs), min(p[1] for p in pairs)
 
     def growth_waiting(self) -> bool:
-        """True if a group, on any rank, has cells waiting for the equilibrium after the last commit's
-        cuts (:meth:`rockfrac.elements.base.Group.growth_waiting`)."""
+        """True if a group, on any rank, asks for a step at the same load after the last commit (its
+        cuts: :meth:`rockfrac.elements.base.ElementGroup.growth_waiting`)."""
         return self.reduce_any(any([g.growth_waiting() for g in self.groups]))
 
     def assemble(self, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray) -> Assembled:

@@ -165,8 +165,9 @@ class ElementGroup(ABC):
         return None
 
     def growth_waiting(self) -> bool:
-        """True if cells made ready at the last commit wait for the stress after that commit's cuts
-        (an embedded crack's new tips); the stepping then re-solves at the same load first."""
+        """True if the last commit changed the group so that the next step should re-solve at the same
+        load first (an embedded crack's cuts: the stress they release, and the cells at its new tips
+        that wait for it)."""
         return False
 
     def event_log(self) -> list[str]:

@@ -67,8 +67,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         return self._scan(self.trial, self.trial_sigma, self._eligible(), exact_cells=False, trial=True)[0]
 
     def growth_waiting(self) -> bool:
-        """True if elastic cells at tips made by the last commit wait for the stress after its cuts
-        (tip events only: the nodal crack)."""
+        """True if the last commit cut cells, or cells at the tips it made wait for the stress after
+        its cuts (tip events only: the nodal crack)."""
         return bool(self.deferred.any())
 
     #: the event indicator over the cells that may open next only (:meth:`_eligible`), so that every
@@ -78,8 +78,8 @@ class EmbeddedDruckerPrager(EmbeddedCells):
     def _eligible(self, waiting: bool = False) -> np.ndarray | None:
         """The cells that may open next: every one (None) while a new crack may start, else the crack
         tips (a cell beside a crack waits for its tip, so it is no event); with tip events, less the
-        cells that were ready at the last commit but wait a step (tracking: an elastic cell at a tip
-        made in that step): they are no event of the next step, which is a hold at the same load
+        cells that wait for the stress after the last commit's cuts (at a tip made by them, ready on
+        the stress before them): they are no event of the next step, which is a hold at the same load
         (rockfrac.solve.stepping), and its commit takes them again (``waiting``: with them)."""
         if self.tracking == "none":
             return None
@@ -218,7 +218,9 @@ class EmbeddedDruckerPrager(EmbeddedCells):
         pending = sorted((c for part in paths.exchange.allgather(mine) for c in part), key=lambda c: c[:2])
         any_ready = bool(pending)  # on any rank (the scan below is collective)
         k = paths.groups.index(self)
+        waited = self.deferred.copy()  # through the hold that ends here
         self.deferred[:] = False
+        opened = []
         progress = True
         while pending and progress:  # a newly cut cell may give the next one its tip...
             progress = False
@@ -237,16 +239,23 @@ class EmbeddedDruckerPrager(EmbeddedCells):
                 local = paths.local(gcell, k)
                 if local >= 0:
                     self._open(local, ratio, loc, tip, normal)
+                    opened.append(local)
                 paths.announce(gcell)
                 self.cut_announced(gcell)
                 pending.remove(cand)
                 progress = True
         if not any_ready or not self.tip_events:
             return best
-        # the indicator after the cuts, over the cells that may open next (the new tips): an onset in
-        # the next step is then located as an event
-        self.deferred[[paths.local(c[2], k) for c in pending if paths.local(c[2], k) >= 0]] = True
+        # the next step is a hold at this load, for the cells cut now (the stress they release) and
+        # for those that wait for the stress after the cuts: the ready ones that could not open (an
+        # elastic cell at a new tip), and the new tips ready on the stress before the cuts; a cell
+        # that waited through the last hold and still did not open waits no more (an onset in a
+        # later step is located as an event)
         paths.current()
+        after = self._scan(self.state, self.sigma, self._eligible(waiting=True))[1]
+        wait = {paths.local(c[2], k) for c in pending} | {e for e, v in after.items() if v[0] <= self.onset_tol}
+        self.deferred[[e for e in sorted(wait) if e >= 0 and not waited[e]] + opened] = True
+        # the indicator over the cells that may open next: an onset in the next step is an event
         return self._scan(self.state, self.sigma, self._eligible(), exact_cells=False)[0]
 
     def cut_announced(self, gcell: int) -> None:

@@ -17,11 +17,12 @@ constrained and plastic, an embedded crack between sticking and sliding). With m
 yielding, points switch in most iterations of a step whatever its size, so counting those
 iterations kept a cut-back step small for the rest of the run (benchmarks/README.md, "Step growth").
 
-A crack that grows by cells at its tips (the nodal embedded crack) may leave cells waiting for the
-stress after a commit's cuts (``Model.growth_waiting``). The next step is then a "hold": equilibrium
-at the same load factor, committed like any step, so that a crack runs as far as the load already
-applied drives it before the load moves on (otherwise how far it runs in a step is set by the step's
-size). A hold without equilibrium (a snap-back) is dropped and the stepping goes on.
+After a commit that cut cells of a crack growing at its tips (the nodal embedded crack), and left
+cells at the new tips waiting for the stress after the cuts (``Model.growth_waiting``), the next
+step is a "hold": equilibrium at the same load factor, or under path control at the same value of
+the path measure (the load may fall: a snap-back), committed like any step. A crack thus runs as
+far as the load already applied drives it before the load moves on (otherwise how far it ran in a
+step was set by the step's size). A hold that does not converge is dropped and the stepping goes on.
 """
 
 from __future__ import annotations
@@ -215,16 +216,21 @@ def run_stages(
             committed = Committed(u, u_before, lam, loads, u_ref, f_ref)
             constraint = None
             hold = hold_failed != count and model.growth_waiting()
-            if hold:  # cells wait for the stress after the last cuts: equilibrium at the same load first
-                mode = "hold"
-                model.set_step("load", 0.0)
-                res = newton_step(model, u, lam, lam, loads, solver, newton)
-            elif stage.path is not None and (forced or stage.path.active()):
+            if stage.path is not None and (forced or stage.path.active()):
                 constraint = stage.path.constraint(committed)  # frozen at the committed state
             if constraint is not None and path_nominal is None:
                 constraint = None  # the nominal increment comes from the first step
-            if hold:
-                pass
+            if hold:  # after cuts: equilibrium at the same load, or under path control at the same
+                mode = "hold"  # value of the path measure (the load free to fall: a snap-back)
+                if constraint is not None:
+                    assert stage.path is not None
+                    ctrl = PathControl(constraint.measure, constraint.value(u, lam), 1e-9 * nominal["path"],
+                                       size["load"], stage.path.rigid_ok, constraint.lam_coeff)
+                    model.set_step("path", 0.0)
+                    res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
+                else:
+                    model.set_step("load", 0.0)
+                    res = newton_step(model, u, lam, lam, loads, solver, newton)
             elif constraint is not None:
                 mode = "path"
                 assert stage.path is not None
@@ -253,7 +259,7 @@ def run_stages(
                 return stopped(stage)
             if hold and not res.converged:
                 hold_failed = count
-                log(f"  {stage.name}: no equilibrium at load factor {lam:.6f} after the last cuts "
+                log(f"  {stage.name}: no equilibrium after the last cuts at load factor {lam:.6f} (or its path measure) "
                     f"({res.message}); stepping on")
                 continue
             if (not res.converged and mode == "load" and stage.path is not None and not forced

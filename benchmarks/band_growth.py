@@ -2,11 +2,11 @@
 
 One command: ``.venv/bin/python benchmarks/band_growth.py`` (about 4 minutes on 2 cores). The case of
 ``band_meshes.py`` (the band example's rock with its weak column, c_r = phi_r = 0, softening rates
-2000 /m, nonlocal tracking, ``[embedded] kinematics = "nodal"``) at b = 0.1 and the example's b, with
-the tracking length fixed at 6 mm on both meshes (``band_meshes.py`` takes 3 cell sizes). Reports
-per run where the band starts, how many cells it has at the peak, the peak and where, the force at
-1.5 and 2 mm, the holds (steps re-solved at the same load after cuts), and per b the largest and the
-median relative difference of the two meshes' forces at equal displacement after the later peak.
+2000 /m, nonlocal tracking of length 6 mm, ``[embedded] kinematics = "nodal"``) at b = 0.1 and the
+example's b. Reports per run where the band starts, how many cells it has at the peak, the peak and
+where, the force at 1.5 and 2 mm, the holds (steps re-solved at the same load after cuts), and per b
+the largest and the median relative difference of the two meshes' forces at equal displacement
+after the later peak.
 Writes ``results/band_growth.json`` and the ``band-growth-table`` of README.md.
 """
 
@@ -20,10 +20,8 @@ import numpy as np
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
-from band_meshes import meshes, run_one  # noqa: E402
+from band_meshes import LENGTH, meshes, run_one  # noqa: E402
 from run import machine, markdown_table, publish  # noqa: E402
-
-LENGTH = 0.006  # [m]: the nonlocal tracking length on both meshes
 
 
 def gaps(a: dict, b: dict) -> tuple[float, float]:

@@ -6,8 +6,9 @@ Pa/m, about E / h).
 One command: ``.venv/bin/python benchmarks/band_meshes.py`` (about 40 minutes on 2 cores). The band
 example's rock with its weak column at the left edge (6-14 mm above the base), c_r = phi_r = 0,
 softening rates 2000 /m, 4 mm of shortening under path control, nonlocal tracking with a Gaussian
-length of 3 cell sizes; meshes: 20 x 40 and 40 x 80 quads and an unstructured Gmsh triangle mesh
-(2 mm); band angles: the example's dilatancy b (bands near 56 deg) and b = 0.1 (steeper). For each
+length of 6 mm on every mesh; meshes: 20 x 40 and 40 x 80 quads and an unstructured Gmsh triangle
+mesh (2 mm, the same weak column); band angles: the example's dilatancy b (bands near 56 deg) and
+b = 0.1 (steeper). For each
 run: where the path ends, its angle spread, the final force against the Mohr-Coulomb closed form of
 the band at its final mean strengths (800 N/m with none left), and per angle the largest difference
 between the meshes' post-peak curves at equal top displacement. The same rock with the band given
@@ -34,14 +35,15 @@ from band_tracking import closed_form  # noqa: E402
 from run import machine, markdown_table, publish  # noqa: E402
 
 W, H = 0.04, 0.08
+LENGTH = 0.006  # [m]: the nonlocal tracking length, one on every mesh
 
 
 def meshes(tmp: Path) -> dict[str, tuple[dict, float]]:
     """name -> ([mesh] section, cell size [m])."""
     from test_crack_tracking import triangle_block
 
-    msh = triangle_block(tmp / "tri.msh", 0.002)
     seed = [0.0, 0.006, 0.002, 0.014]
+    msh = triangle_block(tmp / "tri.msh", 0.002, tuple(seed))
     return {"quad 20x40": ({"kind": "block", "element": "quad4", "width": W, "height": H, "nx": 20, "ny": 40,
                             "inclusion": seed}, W / 20),
             "quad 40x80": ({"kind": "block", "element": "quad4", "width": W, "height": H, "nx": 40, "ny": 80,
@@ -135,7 +137,7 @@ def main() -> None:
             grown = []
             for name, (mesh, size) in meshes(tmp).items():
                 tag = f"{kin}_b{b}_{name.replace(' ', '_')}"
-                r = run_one(mesh, size, b, tmp / f"band_{tag}", kinematics=kin)
+                r = run_one(mesh, size, b, tmp / f"band_{tag}", kinematics=kin, tracking_length=LENGTH)
                 given = run_one(mesh, size, b, tmp / f"crack_{tag}", crack=r["ends"], kinematics=kin)
                 grown.append(r)
                 for kind, x in (("grown", r), ("given", given)):

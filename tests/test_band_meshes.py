@@ -8,7 +8,7 @@ b = 0.1, cohesion and friction softening to zero (2000 /m), nonlocal tracking wi
 end of a long hardening plateau, and once it forms it runs as far as the load already applied
 drives it (holds, rockfrac.solve.stepping). Before the holds, how far it ran in a step was set by
 the path step's size, its peak came at 1.12 and 1.66 mm on 20 x 40 and 40 x 80 quads and the
-curves differed by up to 221 % (benchmarks/README.md, "A band grows at the load that drives it").
+curves differed by up to 239 % (benchmarks/README.md, "A band grows at the load that drives it").
 """
 
 import tomllib

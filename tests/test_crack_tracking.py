@@ -100,17 +100,18 @@ def test_local_tracking_keeps_a_continuous_path(quad_runs):
     chain(np.vstack([g.segments[g.localized()] for g in emb]), 1e-9 * W)
 
 
-def triangle_block(path, size: float):
-    """An unstructured triangle mesh of the W x H block with a weak seed (regions bulk, weak) and the
-    boundary groups of the block kind."""
+def triangle_block(path, size: float, seed: tuple[float, float, float, float] = (0.0, 0.007, 0.004, 0.015)):
+    """An unstructured triangle mesh of the W x H block with a weak seed (regions bulk, weak; the seed
+    the rectangle (x0, y0, x1, y1) [m] at the left edge) and the boundary groups of the block kind."""
+    x0, y0, x1, y1 = seed
     with gmsh_session("band"):
         occ = gmsh.model.occ
         block = occ.addRectangle(0, 0, 0, W, H)
-        seed = occ.addRectangle(0, 0.007, 0, 0.004, 0.008)
-        occ.fragment([(2, block)], [(2, seed)])
+        weak = occ.addRectangle(x0, y0, 0, x1 - x0, y1 - y0)
+        occ.fragment([(2, block)], [(2, weak)])
         occ.synchronize()
         e = 1e-5  # boxes larger than OCC's bounding-box tolerance, far below the seed's size
-        inner = [t for _, t in gmsh.model.getEntitiesInBoundingBox(-e, 0.007 - e, -e, 0.004 + e, 0.015 + e, e, dim=2)]
+        inner = [t for _, t in gmsh.model.getEntitiesInBoundingBox(x0 - e, y0 - e, -e, x1 + e, y1 + e, e, dim=2)]
         outer = [t for _, t in gmsh.model.getEntities(2) if t not in inner]
         gmsh.model.addPhysicalGroup(2, inner, name="weak")
         gmsh.model.addPhysicalGroup(2, outer, name="bulk")

@@ -113,7 +113,8 @@ class EmbeddedCells(DruckerPragerSolid):
         self._stuck = np.zeros(n_el, dtype=bool)
         self._released = np.zeros(n_el, dtype=bool)
         self.last_event = 1.0  # min det ratio of the committed state over cells that may localize
-        self.deferred = np.zeros(cells.shape[0], dtype=bool)  # cut at the last commit, or waiting for its stress: a hold next
+        # cut at the last commit, or waiting for the stress after its cuts: the next step is a hold
+        self.deferred = np.zeros(cells.shape[0], dtype=bool)
 
     # -- state -----------------------------------------------------------------------------
     def begin_step(self) -> None:

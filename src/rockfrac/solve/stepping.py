@@ -17,12 +17,13 @@ constrained and plastic, an embedded crack between sticking and sliding). With m
 yielding, points switch in most iterations of a step whatever its size, so counting those
 iterations kept a cut-back step small for the rest of the run (benchmarks/README.md, "Step growth").
 
-After a commit that cut cells of a crack growing at its tips (the nodal embedded crack), and left
-cells at the new tips waiting for the stress after the cuts (``Model.growth_waiting``), the next
-step is a "hold": equilibrium at the same load factor, or under path control at the same value of
-the path measure (the load may fall: a snap-back), committed like any step. A crack thus runs as
-far as the load already applied drives it before the load moves on (otherwise how far it ran in a
-step was set by the step's size). A hold that does not converge is dropped and the stepping goes on.
+After a commit that cut cells of a crack growing at its tips (the nodal embedded crack:
+``Model.growth_waiting``), the next step is a "hold": equilibrium at the same load factor, or under
+path control at the same value of the path measure (the load may fall: a snap-back), committed like
+any step. The cells at the new tips that the stress before the cuts already drives wait for the
+stress after them, and the hold's commit opens those it drives. A crack thus runs as far as the load
+already applied drives it before the load moves on (otherwise how far it ran in a step was set by
+the step's size). A hold that does not converge is dropped and the stepping goes on.
 """
 
 from __future__ import annotations
@@ -259,8 +260,8 @@ def run_stages(
                 return stopped(stage)
             if hold and not res.converged:
                 hold_failed = count
-                log(f"  {stage.name}: no equilibrium after the last cuts at load factor {lam:.6f} (or its path measure) "
-                    f"({res.message}); stepping on")
+                log(f"  {stage.name}: no equilibrium after the last cuts at load factor {lam:.6f} (or its "
+                    f"path measure) ({res.message}); stepping on")
                 continue
             if (not res.converged and mode == "load" and stage.path is not None and not forced
                     and (m := stage.path.constraint(committed)) is not None

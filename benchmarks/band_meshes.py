@@ -141,7 +141,7 @@ def main() -> None:
                 given = run_one(mesh, size, b, tmp / f"crack_{tag}", crack=r["ends"], kinematics=kin)
                 grown.append(r)
                 for kind, x in (("grown", r), ("given", given)):
-                    record["runs"][f"{kin} b={b} {name} {kind}"] = {k: v for k, v in x.items() if k not in ("u", "F")}
+                    record["runs"][f"{kin} b={b} {name} {kind}"] = {k: v for k, v in x.items() if k not in ("u", "F", "cut")}
                     rows.append([kin, f"{b:g}", name, kind, x["cells"], x["reach"],
                                  f"{x['angle_min']:.1f}-{x['angle_max']:.1f}", f"{x['F_peak']:.0f}",
                                  f"{x['F_end']:.0f}", f"{x['F_closed_form']:.0f}",

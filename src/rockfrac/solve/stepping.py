@@ -221,28 +221,23 @@ def run_stages(
                 constraint = stage.path.constraint(committed)  # frozen at the committed state
             if constraint is not None and path_nominal is None:
                 constraint = None  # the nominal increment comes from the first step
-            if hold:  # after cuts: equilibrium at the same load, or under path control at the same
-                mode = "hold"  # value of the path measure (the load free to fall: a snap-back)
-                if constraint is not None:
-                    assert stage.path is not None
-                    ctrl = PathControl(constraint.measure, constraint.value(u, lam), 1e-9 * nominal["path"],
-                                       size["load"], stage.path.rigid_ok, constraint.lam_coeff)
-                    model.set_step("path", 0.0)
-                    res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
-                else:
-                    model.set_step("load", 0.0)
-                    res = newton_step(model, u, lam, lam, loads, solver, newton)
-            elif constraint is not None:
-                mode = "path"
+            # a hold (after cuts): equilibrium at the same load, or under path control at the same value
+            # of the path measure (the load free to fall: a snap-back)
+            if constraint is not None:
+                mode = "hold" if hold else "path"
                 assert stage.path is not None
-                target = constraint.value(u, lam) + size["path"]
-                ctrl = PathControl(constraint.measure, target, 1e-9 * nominal["path"], size["load"],
-                                   stage.path.rigid_ok, constraint.lam_coeff)
-                model.set_step("path", size["path"])
+                increment = 0.0 if hold else size["path"]
+                ctrl = PathControl(constraint.measure, constraint.value(u, lam) + increment, 1e-9 * nominal["path"],
+                                   size["load"], stage.path.rigid_ok, constraint.lam_coeff)
+                model.set_step("path", increment)
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
-                if res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
+                if not hold and res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
                     model.set_step("load", 1.0 - lam)
                     res = newton_step(model, u, lam, 1.0, loads, solver, newton)
+            elif hold:
+                mode = "hold"
+                model.set_step("load", 0.0)
+                res = newton_step(model, u, lam, lam, loads, solver, newton)
             else:
                 mode = "load"
                 size["load"] = min(size["load"], 1.0 - lam)

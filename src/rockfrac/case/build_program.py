@@ -190,7 +190,7 @@ def path_spec(stage: StageSection, surfaces: list[ElementGroup], mesh: Mesh, mod
 
         return combined
 
-    return crack_path(measure, stage.path_increment, active, stage.max_steps)
+    return crack_path(measure, stage.path_increment, active, stage.max_steps, rigid_ok=True)
 
 
 def _check_still_supports(presc: dict[int, float], held: dict[int, float] | None, key: str, path: str,

@@ -251,8 +251,8 @@ def newton_step(
                 rigid = not abs(slope) > 1e-12 * model.gradient_norm(grad) * model.norm(du_b, "all")
                 if not rigid:
                     dlam = (control.target - g - model.gradient_dot(grad, du)) / slope
-                else:  # rigid (all constrained): g cannot move yet, so push the load instead
-                    dlam = control.predictor
+                else:  # rigid (all constrained): g cannot move yet, so the step is a load step of the predictor
+                    dlam = lam_n + control.predictor - u_lam
                 du = du + dlam * du_b
                 u_lam += dlam
             del lu  # freed before the next tangent is assembled and factorized: one factor alive at a time

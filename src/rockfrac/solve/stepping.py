@@ -228,7 +228,8 @@ def run_stages(
                 assert stage.path is not None
                 increment = 0.0 if hold else size["path"]
                 ctrl = PathControl(constraint.measure, constraint.value(u, lam) + increment, 1e-9 * nominal["path"],
-                                   size["load"], stage.path.rigid_ok, constraint.lam_coeff)
+                                   size["load"] * size["path"] / nominal["path"], stage.path.rigid_ok,
+                                   constraint.lam_coeff)
                 model.set_step("path", increment)
                 res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
                 if not hold and res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end

@@ -161,9 +161,9 @@ def test_rigid_plastic_surfaces_everywhere_carry_the_disc_to_its_splitting_load(
     """The same disc with RP surfaces on every edge: the first to yield are pairs on loops round
     nodes near the centre, which cannot open alone (their jumps stay zero). A path step then has
     nothing to follow (the mean jump does not respond to the load) and is taken as a load step, so
-    the load rises while more pairs yield, until the chain along the loaded diameter has yielded:
-    the peak is the Brazilian estimate to 1.5 %, 1.4 times the load at the first yield. Before,
-    the run stopped at the first yield (issue 15)."""
+    the load rises while more pairs yield; once chains of them can open, the steps follow the
+    opening again, up to the peak: the Brazilian estimate to 2 % (1.3 % measured), 1.4 times the
+    load at the first yield. Before, the run stopped at the first yield (issue 15)."""
     data = example("brazilian/everywhere.toml", **{"0__steps": 50})
     coh = data["cohesive"]
     coh["form"], coh["augmentation"] = "rp", coh.pop("kn")
@@ -175,7 +175,7 @@ def test_rigid_plastic_surfaces_everywhere_carry_the_disc_to_its_splitting_load(
     yielded = (p["step"] == first) & (p["state"] == "plastic")
     assert yielded.any() and np.abs(np.hypot(p["jump_t"], p["jump_n"])[yielded]).max() < 1e-12
     peak = -h["R_load_top_y"].min()
-    assert peak == pytest.approx(brazilian_estimate(8e6), rel=0.015)
+    assert peak == pytest.approx(brazilian_estimate(8e6), rel=0.02)
     assert peak > 1.3 * -h["R_load_top_y"][first - 1]
     assert h["n_plastic"].max() >= 20 and np.count_nonzero(h["control"] == "path") >= 10
 

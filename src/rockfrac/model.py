@@ -279,11 +279,11 @@ class Model:
     # -- the reductions of the solvers (a distributed model sums over its ranks) ------------------
     distributed = False  # True for a model of one rank's elements (rockfrac.parallel)
 
-    def _part(self, part: str) -> np.ndarray | None:
-        return {"free": self.free, "dirichlet": self.dirichlet, "all": None}[part]
+    def _part(self, part: str) -> np.ndarray | slice | None:
+        return {"free": self.free, "dirichlet": self.dirichlet, "all": None, "u": slice(0, self.n_u)}[part]
 
     def dot(self, x: np.ndarray, y: np.ndarray, part: str = "free") -> float:
-        """x . y over the dofs of ``part``: "free", "dirichlet" or "all"."""
+        """x . y over the dofs of ``part``: "free", "dirichlet", "all" or "u" (the displacements)."""
         idx = self._part(part)
         return serial_dot(x, y) if idx is None else serial_dot(x[idx], y[idx])
 

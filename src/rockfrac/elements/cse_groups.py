@@ -358,13 +358,10 @@ class CohesiveRP(_CohesiveGroup):
 
     Junctions: around a node split into k >= 3 copies the pairs' jumps sum to zero, so their
     multipliers are statically indeterminate (forces may circulate round the node: a singular
-    system). At such pairs the multiplier row gets a perturbed-Lagrangian term
+    system). At such pairs, while constrained, the multiplier row gets a perturbed-Lagrangian term
     JUNCTION_EPS w (lambda - lambda_n): the circulating part takes its least value (for a uniform
     stress that is exactly w sigma . n, the physical traction: the normals round a node sum to
-    zero) at a constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m. Plastic pairs keep the
-    term (an error of the same size in their plastic jump): a pair on its yield surface that cannot
-    open alone (its jump held by the loop) flips between constrained and plastic without flow, and
-    without the term each flip would take the circulation's only regularisation away from it.
+    zero) at a constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m.
     """
 
     JUNCTION_EPS = 1e-8
@@ -449,7 +446,8 @@ class CohesiveRP(_CohesiveGroup):
         self._pinned |= (self._flips >= self.PIN_AFTER_FLIPS) & ~self._released
         local = 0.0
         if self._pinned.any():
-            f = self.law.yield_values(self.trial[self._pinned])
+            with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate's tractions: the step fails on them
+                f = self.law.yield_values(self.trial[self._pinned])
             scale = self.law.scale
             outside = f > 1e-9 * scale
             if outside.any():

@@ -148,7 +148,7 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
     ki = ke[i]
     pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
     multiplier_rows(r, w, s_new[i, S_TT], s_new[i, S_TN], lam[i], aug, fi, ki)
-    if eps[i] > 0.0:
+    if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
         junction_rows(r, w, eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
 
 

@@ -161,10 +161,9 @@ def ep_points_3d(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, st
 
 
 @inner
-def _rp_rows(r, w, s, lam, aug, eps, t_old, fi, ki):
+def _rp_rows(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
     """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
-    :func:`rockfrac.fem.interface.pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D
-    (the junction term where eps > 0)."""
+    :func:`rockfrac.fem.interface.pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D."""
     for a in range(3):
         tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
         fi[6 + a] = w * (tg - lam[a])
@@ -175,7 +174,7 @@ def _rp_rows(r, w, s, lam, aug, eps, t_old, fi, ki):
             ki[6 + a, b] = -kab
             ki[6 + a, 3 + b] = kab
             ki[6 + a, 6 + b] = kab / aug - (w if a == b else 0.0)
-    if eps > 0.0:
+    if junction:
         for a in range(3):
             lam_n = r[0, a] * t_old[0] + r[1, a] * t_old[1] + r[2, a] * t_old[2]
             fi[6 + a] -= eps * w * (lam[a] - lam_n)
@@ -216,7 +215,8 @@ def rp_points_3d(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
                                       p, sn, dn, s2o, s2n, d2)
             switched[i] = 1 if sn[mode_slot] != mode_prev[i] else 0
             pair_blocks_3d(r, weight[i], sn, dn, fe[i], ke[i])
-            _rp_rows(r, weight[i], sn, lam[i], aug, eps[i], so, fe[i], ke[i])
+            _rp_rows(r, weight[i], sn, lam[i], aug, eps[i], so, eps[i] > 0.0 and sn[mode_slot] != MODE_PLASTIC,
+                     fe[i], ke[i])
 
 
 def ep_form_3d(law: TractionLaw, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:

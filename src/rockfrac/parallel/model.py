@@ -229,6 +229,9 @@ class DistributedModel(Model):
 
     # -- reductions over the ranks ---------------------------------------------------------------
     def _owned(self, part: str) -> np.ndarray:
+        if part == "u":
+            owned = self.layout.owned_local
+            return owned[owned < self.n_u]
         return {"free": self._free_owned, "dirichlet": self._dirichlet_owned, "all": self.layout.owned_local}[part]
 
     def dot(self, x: np.ndarray, y: np.ndarray, part: str = "free") -> float:

@@ -4,10 +4,10 @@ Loads depend on a load factor lam: prescribed values d(lam) = d0 + lam dd on the
 and external forces f(lam) = f0 + lam df. Under load control lam is given; under path control
 (indirect displacement control) lam is an extra unknown fixed by a scalar constraint
 g(u) = target, solved with the bordered scheme: two right-hand sides on one factorization.
-Where g does not respond to lam at all (a rigid-plastic surface still fully constrained), the
-iteration takes a load-controlled predictor increment instead, until the surface yields; with
-``rigid_ok`` (an opening between two points held shut by such a surface) the step then converges as
-a load step of that increment.
+Where g does not respond to lam (a rigid-plastic surface still fully constrained, or yielding only at
+pairs that cannot open, held shut on a loop round a node), the iteration takes a load-controlled
+predictor increment instead (the load factor lam_n + predictor); with ``rigid_ok`` the step then
+converges as a load step of that increment.
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
@@ -95,6 +95,13 @@ class NewtonResult:
         """The iterations whose iterate switched a point's state (an active-set change)."""
         return sum(1 for n in self.switched[1:] if n)
 
+
+# g does not respond to the load (rigid) where dg/dlam is below RIGID_SLOPE |grad g| |du/dlam| (the
+# displacements' part: grad g has no other), or where meeting the target would move the load factor by
+# more than MAX_PATH_LOAD, a whole stage, in one step: the leak through the junction term of an RP pair
+# held shut on a loop (~1e-12 relative; an opening mechanism gives 1e-6 and more)
+RIGID_SLOPE = 1e-12
+MAX_PATH_LOAD = 1.0
 
 CYCLE_TOL = 1e-9  # relative: residuals this close one period apart are the same iterate again
 
@@ -248,10 +255,11 @@ def newton_step(
             if control is not None:
                 du_b = lu.solve(rhs_b)
                 slope = model.gradient_dot(grad, du_b) + control.lam_coeff
-                rigid = not abs(slope) > 1e-12 * model.gradient_norm(grad) * model.norm(du_b, "all")
+                rigid = not abs(slope) > RIGID_SLOPE * model.gradient_norm(grad) * model.norm(du_b, "u")
                 if not rigid:
                     dlam = (control.target - g - model.gradient_dot(grad, du)) / slope
-                else:  # rigid (all constrained): g cannot move yet, so the step is a load step of the predictor
+                    rigid = abs(u_lam + dlam - lam_n) > MAX_PATH_LOAD
+                if rigid:  # g cannot move (surfaces hold it shut): the step is a load step of the predictor
                     dlam = lam_n + control.predictor - u_lam
                 du = du + dlam * du_b
                 u_lam += dlam

@@ -9,8 +9,9 @@ edges), table ``fragmentation-grains``. The disc of examples/rock_tests/brazilia
 edge, path control on the mean opening, at 100 and 200 nominal steps. EP (penalty 1e15 Pa/m) runs
 with ``[solver] fallback = "implex"`` (IMPL-EX once an implicit step fails at min_step), and again
 under load control with the viscous regularisation ``[cohesive] viscosity`` instead (the energy a
-snap-back releases goes to D_viscous, reported); RP has no such fallback (its multipliers have no
-elastic jump to extrapolate). Reports per run: internal edges
+snap-back releases goes to D_viscous, reported); RP has no IMPL-EX fallback (its multipliers have no
+elastic jump to extrapolate) but runs under load control with the same viscosity too, its
+augmentation the EP's penalty (variant "rp viscous"). Reports per run: internal edges
 (interface points), steps, Newton iterations per step, the step where IMPL-EX took over, wall time,
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
@@ -86,7 +87,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
     ap.add_argument("--size", type=float, default=None, help="element size [m] (disc 0.0009, grains 0.004)")
-    ap.add_argument("--variants", nargs="+", default=["ep", "ep viscous", "rp"])
+    ap.add_argument("--variants", nargs="+", default=["ep", "ep viscous", "rp", "rp viscous"])
     ap.add_argument("--steps", type=int, nargs="+", default=[100, 200])
     ap.add_argument("--displacement", type=float, default=None,
                     help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
@@ -136,9 +137,9 @@ def main() -> None:
                 if form == "rp":
                     coh["augmentation"] = coh.pop("kn")
                     coh.pop("kt")
-                elif variant == "ep viscous":  # load control; the overstress ~ eta kn dJ/dt stays small
-                    coh["viscosity"] = visc
-            if variant == "ep viscous":
+                if variant.endswith("viscous"):  # load control; the overstress ~ eta kn dJ/dt stays small
+                    coh["viscosity"] = visc  # (RP: eta r dJ/dt, the augmentation r = the EP's kn)
+            if variant.endswith("viscous"):
                 stage["control"] = "load"
                 stage.pop("max_steps")
             elif form == "ep":
@@ -168,7 +169,7 @@ def main() -> None:
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
-                   "viscosity": visc if variant == "ep viscous" else None,
+                   "viscosity": visc if variant.endswith("viscous") else None,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -180,14 +181,14 @@ def main() -> None:
                                             / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
             record["runs"][run_key(rec)] = rec
             print(variant, steps, rec, flush=True)
-    order = {"ep": 0, "ep viscous": 1, "rp": 2}
+    order = {"ep": 0, "ep viscous": 1, "rp": 2, "rp viscous": 3}
     rows = []
     for rec in sorted(record["runs"].values(),
                       key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0), -r.get("stop_fraction", 0.5),
                                      r["nominal_steps"])):
         v = rec["variant"]
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
-        rows.append([v.upper() if v != "ep viscous" else f"EP, viscosity {eta:g}, load control",
+        rows.append([v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control",
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
                      rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}",
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",

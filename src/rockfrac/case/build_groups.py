@@ -118,7 +118,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
                            viscosity=section.viscosity or 0.0)]
     if junction is None:
         junction = at_junctions(mesh, points.minus)
-    return [CohesiveRP(points, law, section.augmentation, junction=junction, name=name)]
+    return [CohesiveRP(points, law, section.augmentation, junction=junction, name=name,
+                       viscosity=section.viscosity or 0.0)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

@@ -60,11 +60,12 @@ class CohesiveCommon(_Section):
         "implicit", description="EP only: 'implicit' (the law's return at the end of each step) or 'implex' "
         "(Oliver et al. 2008: equilibrium with the plastic jump extrapolated from the last two steps; one "
         "Newton iteration per step, first order in the step size)")
-    viscosity: float | None = Field(None, gt=0.0, le=1e6, description="EP, implicit only: Duvaut-Lions "
+    viscosity: float | None = Field(None, gt=0.0, le=1e6, description="EP (implicit) or RP: Duvaut-Lions "
                                     "relaxation time [pseudo-time of history.csv's 'time': one load-controlled "
-                                    "stage = 1] of a viscous regularisation (Simo & Hughes 1998), for load "
-                                    "steps through snap-backs; its extra dissipation is the column D_viscous "
-                                    "(default: none, the rate-independent law)")
+                                    "stage = 1] of a viscous regularisation (Simo & Hughes 1998; for RP with "
+                                    "the augmentation as stiffness), for load steps through snap-backs; its "
+                                    "extra dissipation is the column D_viscous (default: none, the "
+                                    "rate-independent law)")
 
     @model_validator(mode="after")
     def _placement(self) -> CohesiveCommon:
@@ -98,9 +99,6 @@ class CohesiveCommon(_Section):
             if self.integration != "implicit":
                 raise ValueError("integration = 'implex' only applies to form = 'ep' (it extrapolates the "
                                  "plastic jump behind the penalty)")
-            if self.viscosity is not None:
-                raise ValueError("viscosity only applies to form = 'ep' (it relaxes the penalty's elastic "
-                                 "trial; RP has none)")
         return self
 
 

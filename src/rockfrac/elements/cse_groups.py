@@ -17,7 +17,7 @@ from rockfrac.fem.loads import StressField
 from rockfrac.laws.implex import implex_points
 from rockfrac.laws.law3d import Law3D
 from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw
-from rockfrac.laws.viscous import duvaut_lions_points
+from rockfrac.laws.viscous import duvaut_lions_points, duvaut_lions_rp_points
 
 
 class _CohesiveGroup(ElementGroup):
@@ -27,10 +27,20 @@ class _CohesiveGroup(ElementGroup):
     rigid = False  # RP: constrained points have no elastic jump
     checkpoint_attrs: tuple[str, ...] = ("state", "tangent", "dissipated")
 
-    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, *, name: str = "cohesive"):
+    MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint
+
+    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, *, name: str = "cohesive",
+                 viscosity: float = 0.0):
+        if not viscosity >= 0.0:
+            raise ValueError(f"viscosity must be >= 0 (got {viscosity!r})")
         self.name = name
         self.points = points
         self.law = law
+        self.viscosity = float(viscosity)
+        self.viscous_dissipated = 0.0  # sum of w <T - T_bar> . d[[u^p]] over the committed steps [J] (trapezoidal)
+        self._t_bar = np.zeros((points.n, points.dim))  # viscous: the law's own tractions of the last evaluation
+        self.overstress = np.zeros((points.n, points.dim))  # viscous: committed T - T_bar [Pa]
+        self._step = np.zeros(2)  # (control mode, size) of the step being solved
         self.mode = law.mode_slot
         n = points.n
         d = self.dim = points.dim
@@ -58,8 +68,36 @@ class _CohesiveGroup(ElementGroup):
         self.trial[:] = self.state
         self.trial_tangent[:] = self.tangent
 
+    def set_step(self, mode: str, size: float) -> None:
+        self._step[:] = (self.MODES[mode], size)
+
+    def blend(self) -> float:
+        """Viscous regularisation: a = r / (1 + r), r = dt / eta, dt the pseudo-time of the step (its
+        load-factor increment; a step of another control, which the case refuses, has none)."""
+        mode, size = self._step
+        dt = size if mode == self.MODES["load"] else 0.0
+        return dt / (self.viscosity + dt) if dt > 0.0 else 0.0
+
+    def viscous_energy(self) -> float | None:
+        return self.viscous_dissipated if self.viscosity > 0.0 else None
+
+    def _committed_for_return(self) -> np.ndarray:
+        """The committed state the law returns from: with viscosity a copy with every point's mode
+        reset (an overstressed point returns even at a zero jump increment; the laws' shortcut for a
+        committed plastic point would keep its overstress)."""
+        if self.viscosity == 0.0:
+            return self.state
+        committed = self.state.copy()
+        committed[:, self.mode] = 0.0
+        return committed
+
     def commit(self) -> None:
         d_up = self.trial[:, self._up] - self.state[:, self._up]
+        if self.viscosity > 0.0:
+            over = self.trial[:, self._t] - self._t_bar
+            self.viscous_dissipated += float(np.einsum("pi,pi,p->", 0.5 * (over + self.overstress), d_up,
+                                                       self.points.weight))
+            self.overstress[:] = over
         mean = 0.5 * (self.trial[:, self._t] + self.state[:, self._t])
         self.dissipated += float(np.einsum("pi,pi,p->", mean, d_up, self.points.weight))
         self.state[:] = self.trial
@@ -237,7 +275,6 @@ class CohesiveEP(_CohesiveGroup):
     """
 
     n_extra = 0
-    MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint
 
     def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, *, name: str = "cohesive",
                  integration: str = "implicit", viscosity: float = 0.0):
@@ -250,17 +287,12 @@ class CohesiveEP(_CohesiveGroup):
                              f"with integration {integration!r})")
         if points.dim == 3 and integration != "implicit":
             raise ValueError("IMPL-EX integration is 2D only; 3D surfaces are integrated implicitly")
-        super().__init__(points, law, name=name)
+        super().__init__(points, law, name=name, viscosity=viscosity)
         d = self.dim
         self.up_prev = np.zeros((points.n, d))  # IMPL-EX: committed plastic jumps one step earlier [m]
         self.step_prev = np.zeros(2)  # IMPL-EX: (control mode, size) of the last committed step
-        self._step = np.zeros(2)  # ... and of the step being solved
         self._t_ex = np.zeros((points.n, d))  # IMPL-EX: the explicit tractions of the last evaluation
         self.implex = np.array(1.0 if integration == "implex" else 0.0)  # 1: IMPL-EX (as checkpointed)
-        self.viscosity = float(viscosity)
-        self.viscous_dissipated = 0.0  # sum of w <T - T_bar> . d[[u^p]] over the committed steps [J] (trapezoidal)
-        self._t_bar = np.zeros((points.n, d))  # viscous: the law's own tractions of the last evaluation
-        self.overstress = np.zeros((points.n, d))  # viscous: committed T - T_bar [Pa]
 
     checkpoint_attrs = _CohesiveGroup.checkpoint_attrs + ("up_prev", "step_prev", "implex", "viscous_dissipated",
                                                        "overstress")
@@ -284,9 +316,6 @@ class CohesiveEP(_CohesiveGroup):
         self.implex = np.array(1.0)
         return True
 
-    def set_step(self, mode: str, size: float) -> None:
-        self._step[:] = (self.MODES[mode], size)
-
     def step_ratio(self) -> float:
         """dt_{n+1} / dt_n for the extrapolation: the sizes of this step and the last committed one
         when both are controlled alike; else 0, no extrapolation (a load increment against a path
@@ -296,23 +325,7 @@ class CohesiveEP(_CohesiveGroup):
         (mode, size), (mode_prev, size_prev) = self._step, self.step_prev
         return size / size_prev if mode == mode_prev and mode > 0.0 and size_prev > 0.0 else 0.0
 
-    def blend(self) -> float:
-        """Viscous regularisation: a = r / (1 + r), r = dt / eta, dt the pseudo-time of the step (its
-        load-factor increment; a step of another control, which the case refuses, has none)."""
-        mode, size = self._step
-        dt = size if mode == self.MODES["load"] else 0.0
-        return dt / (self.viscosity + dt) if dt > 0.0 else 0.0
-
-    def viscous_energy(self) -> float | None:
-        return self.viscous_dissipated if self.viscosity > 0.0 else None
-
     def commit(self) -> None:
-        if self.viscosity > 0.0:
-            d_up = self.trial[:, self._up] - self.state[:, self._up]
-            over = self.trial[:, self._t] - self._t_bar
-            self.viscous_dissipated += float(np.einsum("pi,pi,p->", 0.5 * (over + self.overstress), d_up,
-                                                       self.points.weight))
-            self.overstress[:] = over
         self.up_prev[:] = self.state[:, self._up]  # kept in both modes: a switch has its history
         self.step_prev[:] = self._step
         super().commit()
@@ -328,10 +341,7 @@ class CohesiveEP(_CohesiveGroup):
         fe = np.empty((n, nd))
         ke = np.empty((n, nd, nd))
         mode_prev = self.trial[:, self.mode].copy()  # the previous iterate's (a change is a switch)
-        committed = self.state
-        if self.viscosity > 0.0:  # an overstressed point returns even at zero jump increment (the laws'
-            committed = self.state.copy()  # shortcut for committed plastic points would keep the overstress)
-            committed[:, self.mode] = 0.0
+        committed = self._committed_for_return()
         self.law.ep_points(pts.frame, pts.weight, djump,
                            committed, self.tangent, self.trial, self.trial_tangent, fe, ke, self.status)
         if self.integration == "implex":  # the state as above; equilibrium with the explicit traction
@@ -362,6 +372,10 @@ class CohesiveRP(_CohesiveGroup):
     JUNCTION_EPS w (lambda - lambda_n): the circulating part takes its least value (for a uniform
     stress that is exactly w sigma . n, the physical traction: the normals round a node sum to
     zero) at a constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m.
+
+    viscosity eta > 0 [pseudo-time, one load-controlled stage = 1]: the augmented return regularised
+    by :mod:`rockfrac.laws.viscous` (Duvaut-Lions with K = r I: the plastic jump's rate is the
+    overstress over eta r), its extra dissipation kept in ``viscous_dissipated``.
     """
 
     JUNCTION_EPS = 1e-8
@@ -369,8 +383,10 @@ class CohesiveRP(_CohesiveGroup):
     rigid = True
 
     def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, augmentation: float,
-                 junction: np.ndarray | None = None, *, name: str = "cohesive"):
-        super().__init__(points, law, name=name)
+                 junction: np.ndarray | None = None, *, name: str = "cohesive", viscosity: float = 0.0):
+        super().__init__(points, law, name=name, viscosity=viscosity)
+        if self.viscosity > 0.0:  # an inviscid run's checkpoint keeps its layout
+            self.checkpoint_attrs = type(self).checkpoint_attrs + ("viscous_dissipated", "overstress")
         self.aug = float(augmentation)
         self.eps = np.where(junction, self.JUNCTION_EPS, 0.0) if junction is not None else np.zeros(points.n)
         self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step
@@ -436,9 +452,14 @@ class CohesiveRP(_CohesiveGroup):
         ke = np.empty((n, nd, nd))
         switched = np.zeros(n, dtype=np.int64)
         mode_prev = self.trial[:, self.mode].copy()
-        self.law.rp_points(pts.frame, pts.weight, djump,
-                           self.multipliers(u), self.aug, self.eps, self._pinned, self.state, self.tangent,
-                           mode_prev, self.trial, self.trial_tangent, fe, ke, self.status, switched)
+        lam = self.multipliers(u)
+        committed = self._committed_for_return()
+        self.law.rp_points(pts.frame, pts.weight, djump, lam, self.aug, self.eps, self._pinned, committed,
+                           self.tangent, mode_prev, self.trial, self.trial_tangent, fe, ke, self.status, switched)
+        if self.viscosity > 0.0:  # the augmented return, relaxed towards the trial lambda + r h (Duvaut-Lions)
+            duvaut_lions_rp_points(pts.frame, pts.weight, djump, lam, self.aug, self.eps, committed, self.trial,
+                                   self.trial_tangent, self.blend(), np.int64(self.law.dgamma_slot),
+                                   np.int64(self.mode), self._t_bar, fe, ke)
         # active-set pinning: a point chattering between constrained and plastic (on its yield
         # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
         # only if its traction is inside the surface, else it is released (once per step)

@@ -99,3 +99,24 @@ def pair_blocks_3d(r, w, s, d, fe, ke):
             ke[i, 3 + j] = -k
             ke[3 + i, j] = -k
             ke[3 + i, 3 + j] = k
+
+
+@inner
+def multiplier_rows_3d(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
+    """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
+    :func:`pair_blocks_3d`: :func:`multiplier_rows` and, where ``junction``, :func:`junction_rows` in 3D."""
+    for a in range(3):
+        tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
+        fi[6 + a] = w * (tg - lam[a])
+        for b in range(3):
+            kab = ki[a, b]
+            ki[a, 6 + b] = -kab / aug
+            ki[3 + a, 6 + b] = kab / aug
+            ki[6 + a, b] = -kab
+            ki[6 + a, 3 + b] = kab
+            ki[6 + a, 6 + b] = kab / aug - (w if a == b else 0.0)
+    if junction:
+        for a in range(3):
+            lam_n = r[0, a] * t_old[0] + r[1, a] * t_old[1] + r[2, a] * t_old[2]
+            fi[6 + a] -= eps * w * (lam[a] - lam_n)
+            ki[6 + a, 6 + a] -= eps * w

@@ -25,7 +25,7 @@ import numba as nb
 import numpy as np
 
 from rockfrac.compiled import inner, kernel
-from rockfrac.fem.interface import CHUNK, local_jump_3d, pair_blocks_3d
+from rockfrac.fem.interface import CHUNK, local_jump_3d, multiplier_rows_3d, pair_blocks_3d
 from rockfrac.laws.mohr_coulomb_surface import MohrCoulombSurface
 from rockfrac.laws.traction_law import MODE_PLASTIC, TractionLaw, keep_committed
 from rockfrac.threads import parallel_kernel
@@ -160,27 +160,6 @@ def ep_points_3d(frame, weight, djump, s_old, d_old, p, s_new, d_new, fe, ke, st
             pair_blocks_3d(r, weight[i], s_new[i], d_new[i], fe[i], ke[i])
 
 
-@inner
-def _rp_rows(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
-    """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
-    :func:`rockfrac.fem.interface.pair_blocks_3d`, as rockfrac.fem.interface.multiplier_rows / junction_rows in 3D."""
-    for a in range(3):
-        tg = r[0, a] * s[0] + r[1, a] * s[1] + r[2, a] * s[2]
-        fi[6 + a] = w * (tg - lam[a])
-        for b in range(3):
-            kab = ki[a, b]
-            ki[a, 6 + b] = -kab / aug
-            ki[3 + a, 6 + b] = kab / aug
-            ki[6 + a, b] = -kab
-            ki[6 + a, 3 + b] = kab
-            ki[6 + a, 6 + b] = kab / aug - (w if a == b else 0.0)
-    if junction:
-        for a in range(3):
-            lam_n = r[0, a] * t_old[0] + r[1, a] * t_old[1] + r[2, a] * t_old[2]
-            fi[6 + a] -= eps * w * (lam[a] - lam_n)
-            ki[6 + a, 6 + a] -= eps * w
-
-
 @parallel_kernel(cost=1.4e-6)  # s per item, one thread: the 2D Mohr-Coulomb estimate
 def rp_points_3d(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
                  status, switched, ret, mode_slot, dgamma_slot):
@@ -215,7 +194,7 @@ def rp_points_3d(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
                                       p, sn, dn, s2o, s2n, d2)
             switched[i] = 1 if sn[mode_slot] != mode_prev[i] else 0
             pair_blocks_3d(r, weight[i], sn, dn, fe[i], ke[i])
-            _rp_rows(r, weight[i], sn, lam[i], aug, eps[i], so, eps[i] > 0.0 and sn[mode_slot] != MODE_PLASTIC,
+            multiplier_rows_3d(r, weight[i], sn, lam[i], aug, eps[i], so, eps[i] > 0.0 and sn[mode_slot] != MODE_PLASTIC,
                      fe[i], ke[i])
 
 

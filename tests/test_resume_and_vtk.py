@@ -26,7 +26,7 @@ def interrupted_then_resumed(case, tmp_path, at: int):
     return run_case(case, tmp_path / "cut", resume=True)
 
 
-@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "joint_3d", "nodal"])
+@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "rp_viscous", "joint_3d", "nodal"])
 def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
     at = 70
     if name == "joint_3d":  # a 3D EP surface (tetrahedra, wedge interfaces in the VTK series)
@@ -50,8 +50,8 @@ def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
     elif name == "ep_implex":  # the extrapolation's history (last plastic jumps, step size) is kept
         d = table1.cse_case("ep", 1e9, axial_steps=120, axial_displacement=4e-3)
         d["cohesive"]["integration"] = "implex"
-    elif name == "ep_viscous":  # the overstress and D_viscous are kept
-        d = table1.cse_case("ep", 1e9, axial_steps=120, axial_displacement=4e-3)
+    elif name in ("ep_viscous", "rp_viscous"):  # the overstress and D_viscous are kept
+        d = table1.cse_case(name[:2], 1e9, axial_steps=120, axial_displacement=4e-3)
         d["cohesive"]["viscosity"] = 1e-3
     else:
         d = table1.ede_case(element="quad4", axial_steps=150)

@@ -84,10 +84,10 @@ def case_warnings(built: Built) -> list[str]:
             if count:
                 out.append(f"RP CSE {group.name!r}: {count} of its points lie on loops of surfaces round a node (a node "
                            "inside the mesh split on every edge round it). Held by the others, such a rigid-plastic "
-                           "surface cannot open alone: a crack tip inside the mesh stays shut, so a crack forms only "
-                           "where a whole chain of surfaces yields at once (from a free boundary, or along a uniformly "
-                           "stressed line), later and at a higher load than with EP surfaces; for fragmentation use "
-                           "form = 'ep' (benchmarks/README.md, 'Fragmentation')")
+                           "surface cannot open alone: a crack forms only where a chain of surfaces has yielded, "
+                           "later and at a higher load than with EP surfaces (a path step they hold shut is taken as "
+                           "a load step); through the snap-backs of fragmentation use [cohesive] viscosity under load "
+                           "control (benchmarks/README.md, 'Fragmentation')")
             continue
         soft_bulk = min(built.case.material_list, key=lambda m: m.E)
         e_plane = plane_strain_modulus(soft_bulk.E, soft_bulk.nu)

@@ -11,7 +11,8 @@ converges as a load step of that increment.
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
-of the largest so far) below tolerance, element-level equations of condensed unknowns (the
+of the largest so far) below tolerance (not at an iterate that switched points: see newton_step),
+element-level equations of condensed unknowns (the
 embedded jumps) met to the residual tolerance, and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
 Every iteration is logged, with the number of points whose state its iterate switched (an active-set
@@ -223,7 +224,12 @@ def newton_step(
             # a rigid load step under an opening control is linear from an equilibrium: the energy of
             # its (round-off) residual relative to round-off says nothing
             held = control is not None and control.rigid_ok and rigid
-            if (rel <= options.tol_residual and (rel_e <= options.tol_energy or held) and g_ok
+            # an iterate that switched points is an equilibrium of its (consistent) active set once its
+            # residual is within tolerance, whatever the energy norm says: that norm weighs the residual
+            # by the switching correction, relative to the step's first (small) one (points on their yield
+            # surfaces flipping back and forth, each flip an equilibrium, would otherwise cycle)
+            settled = rel_e <= options.tol_energy or held or asm.n_switched > 0
+            if (rel <= options.tol_residual and settled and g_ok
                     and asm.local_residual <= options.tol_residual):
                 result.converged = True
                 result.iterations = it

@@ -11,8 +11,8 @@ converges as a load step of that increment.
 
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
-of the largest so far) below tolerance (not at an iterate that switched points: see newton_step),
-element-level equations of condensed unknowns (the
+of the largest so far) below tolerance (or, at an iterate that switched points, the residual at
+round-off: see newton_step), element-level equations of condensed unknowns (the
 embedded jumps) met to the residual tolerance, and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
 Every iteration is logged, with the number of points whose state its iterate switched (an active-set
@@ -103,6 +103,8 @@ class NewtonResult:
 # held shut on a loop (~1e-12 relative; an opening mechanism gives 1e-6 and more)
 RIGID_SLOPE = 1e-12
 MAX_PATH_LOAD = 1.0
+
+ROUNDOFF = 1e-4  # at an iterate that switched points, a residual this far below its tolerance converges
 
 CYCLE_TOL = 1e-9  # relative: residuals this close one period apart are the same iterate again
 
@@ -224,11 +226,12 @@ def newton_step(
             # a rigid load step under an opening control is linear from an equilibrium: the energy of
             # its (round-off) residual relative to round-off says nothing
             held = control is not None and control.rigid_ok and rigid
-            # an iterate that switched points is an equilibrium of its (consistent) active set once its
-            # residual is within tolerance, whatever the energy norm says: that norm weighs the residual
+            # an iterate that switched points with its residual at round-off (ROUNDOFF x the tolerance) is
+            # an equilibrium of its active set, whatever the energy norm says: that norm weighs the residual
             # by the switching correction, relative to the step's first (small) one (points on their yield
-            # surfaces flipping back and forth, each flip an equilibrium, would otherwise cycle)
-            settled = rel_e <= options.tol_energy or held or asm.n_switched > 0
+            # surfaces flipping back and forth, each flip an equilibrium to round-off, would otherwise cycle)
+            settled = (rel_e <= options.tol_energy or held
+                       or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual))
             if (rel <= options.tol_residual and settled and g_ok
                     and asm.local_residual <= options.tol_residual):
                 result.converged = True

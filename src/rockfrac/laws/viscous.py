@@ -47,6 +47,15 @@ CHUNK = 256  # points per parallel task
 
 
 @inner
+def to_local(r, v, out):
+    """out (dim,) = the local components of the global vector v (dim,), dim 2 (t, n) or 3 (t1, t2, n)."""
+    if out.shape[0] == 2:
+        out[0], out[1] = local_jump(r, v)
+    else:
+        out[0], out[1], out[2] = local_jump_3d(r, v)
+
+
+@inner
 def blend_point(s_old, s_new, d_new, tr, k_el, a, dgamma_slot, mode_slot, t_bar, d):
     """One point's Duvaut-Lions update of the module doc, in place on (s_new, d_new): the law's own
     return (s_new, d_new) blended with the trial tractions tr (dim,) of stiffness diag(k_el); t_bar
@@ -88,10 +97,7 @@ def duvaut_lions_points(frame, weight, djump, s_old, s_new, d_new, a, kt, kn, dg
         k_el[dim - 1] = kn
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             r = frame[i]
-            if dim == 2:
-                du[0], du[1] = local_jump(r, djump[i])
-            else:
-                du[0], du[1], du[2] = local_jump_3d(r, djump[i])
+            to_local(r, djump[i], du)
             for p in range(dim):
                 tr[p] = s_old[i, p] + k_el[p] * du[p]
             blend_point(s_old[i], s_new[i], d_new[i], tr, k_el, a, dgamma_slot, mode_slot, t_bar[i], d)
@@ -119,12 +125,8 @@ def duvaut_lions_rp_points(frame, weight, djump, lam, aug, eps, s_old, s_new, d_
         k_el = np.full(dim, aug)
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             r = frame[i]
-            if dim == 2:
-                h[0], h[1] = local_jump(r, djump[i])
-                ll[0], ll[1] = local_jump(r, lam[i])
-            else:
-                h[0], h[1], h[2] = local_jump_3d(r, djump[i])
-                ll[0], ll[1], ll[2] = local_jump_3d(r, lam[i])
+            to_local(r, djump[i], h)
+            to_local(r, lam[i], ll)
             for p in range(dim):
                 tr[p] = ll[p] + aug * h[p]
             blend_point(s_old[i], s_new[i], d_new[i], tr, k_el, a, dgamma_slot, mode_slot, t_bar[i], d)

@@ -84,3 +84,44 @@ def test_the_unsettled_note_counts_most_of_the_last_iterations():
                                   "set does not settle")
     assert unsettled([0, 5, 0, 0, 1, 0, 0, 0, 0]) == ""  # settled
     assert unsettled([0, 1, 1, 1]) == ""  # too few iterations to say
+
+
+class YieldKink(ElementGroup):
+    """One dof x on a yield surface's kink (what an RP point sitting on its surface does to Newton):
+    constrained for x < 1/2, internal force 1e-10 (1 - x) [N], an equilibrium within the tolerance
+    at x = 0 whose nearly flat tangent sends the correction to x = 1; plastic for x >= 1/2, force
+    4e-7 x, whose correction comes back to x = 0. Each change of branch counts as a switch."""
+
+    def __init__(self):
+        self.dofs = np.array([[0, 1]])
+        self.mode = 1  # the step starts plastic, at x = 1
+
+    def evaluate(self, u, u_n):
+        x, y = u[0], u[1]
+        mode = int(x >= 0.5)
+        switched, self.mode = int(mode != self.mode), mode
+        f, k = (4e-7 * x, 4e-7) if mode else (1e-10 * (1.0 - x), -1e-10)
+        return Evaluation(np.array([[f, y]]), np.array([[[k, 0.0], [0.0, 1.0]]]), n_switched=switched)
+
+
+def test_an_equilibrium_the_iteration_comes_back_to_by_switching_converges():
+    # x = 0 is within the residual tolerance, but the energy norm weighs it by the switching
+    # correction from x = 1 and never settles; once the iteration leaves it by switching and comes
+    # back to it by switching, it converges there (it used to alternate until the cycle test stopped it)
+    res = solve(line_search=0, x0=1.0, group=YieldKink)
+    assert res.converged and res.iterations == 3 and res.u[0] == 0.0
+    assert res.residuals == pytest.approx([4e-7, 1e-10, 4e-7, 1e-10])  # x = 1, 0, 1, 0
+    assert res.switched == [0, 1, 1, 1]
+    assert res.energies[-1] > 1e-5  # the energy norm alone would not have converged
+
+
+def test_the_return_test():
+    from rockfrac.solve.newton import _returned
+
+    tol = 1e-8
+    assert _returned([3e-5, 1e-10, 4e-7, 2e-10], [0, 5, 0, 4], tol)
+    assert not _returned([3e-5, 1e-10, 4e-7, 2e-10], [0, 5, 0, 0], tol)  # came back without a switch
+    assert not _returned([3e-5, 1e-10, 4e-7, 2e-10], [0, 0, 0, 4], tol)  # the first one came by iterating
+    assert not _returned([3e-5, 2e-8, 4e-7, 2e-10], [0, 5, 0, 4], tol)  # the first one was not within tol
+    assert not _returned([3e-5, 1e-10, 4e-9, 2e-10], [0, 5, 0, 4], tol)  # it never left the tolerance
+    assert not _returned([1e-10, 4e-7, 2e-10], [5, 0, 4], tol)  # the step's start is not a return

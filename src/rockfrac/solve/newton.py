@@ -12,7 +12,8 @@ converges as a load step of that increment.
 Convergence needs the residual norm (relative to the external and reaction forces) and the energy
 norm |du_(k-1) . r_k| (the work of the current residual on the last correction, relative to that
 of the largest so far) below tolerance (or, at an iterate that switched points, the residual at
-round-off: see newton_step), element-level equations of condensed unknowns (the
+round-off, or an equilibrium within tolerance the iteration came back to by switching after leaving
+it: see newton_step), element-level equations of condensed unknowns (the
 embedded jumps) met to the residual tolerance, and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
 Every iteration is logged, with the number of points whose state its iterate switched (an active-set
@@ -107,6 +108,17 @@ MAX_PATH_LOAD = 1.0
 ROUNDOFF = 1e-4  # at an iterate that switched points, a residual this far below its tolerance converges
 
 CYCLE_TOL = 1e-9  # relative: residuals this close one period apart are the same iterate again
+
+
+def _returned(residuals: list[float], switched: list[int], tol: float) -> bool:
+    """True if the last iterate is an equilibrium within ``tol`` that the iteration came back to: it
+    and the one two before it switched points and are within tol, the one between them is not (a
+    point on its yield surface flipped out of the equilibrium and back; the next correction flips it
+    out again, so the energy norm, weighing the residual by the switching correction, never settles)."""
+    if len(residuals) < 4:
+        return False
+    r, s = residuals[-3:], switched[-3:]
+    return r[2] <= tol and r[0] <= tol and r[1] > tol and s[2] > 0 and s[0] > 0
 
 
 def _cycling(residuals: list[float]) -> bool:
@@ -231,7 +243,8 @@ def newton_step(
             # by the switching correction, relative to the step's first (small) one (points on their yield
             # surfaces flipping back and forth, each flip an equilibrium to round-off, would otherwise cycle)
             settled = (rel_e <= options.tol_energy or held
-                       or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual))
+                       or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual)
+                       or _returned(result.residuals, result.switched, options.tol_residual))
             if (rel <= options.tol_residual and settled and g_ok
                     and asm.local_residual <= options.tol_residual):
                 result.converged = True

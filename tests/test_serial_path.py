@@ -4,6 +4,7 @@ call, MKL's default where the symbol is missing), Numba kernels on one thread be
 thresholds (``rockfrac.threads``, tested in test_threads.py), Newton's norms without BLAS; the same results either way."""
 
 import math
+import os
 import subprocess
 import sys
 import threading
@@ -208,3 +209,23 @@ def test_results_do_not_depend_on_whether_numba_threads_ran_first():
     outs = [subprocess.run([sys.executable, "-c", code, mode], capture_output=True, text=True, check=True,
                            timeout=300).stdout.split() for mode in ("fresh", "threads first")]
     assert int(outs[0][0]) > 20 and outs[0] == outs[1]
+
+
+@needs_pardiso
+def test_threaded_pardiso_runs_in_mkl_reproducible_mode():
+    """PARDISO on its threads factorizes the same matrix to different last bits from call to call
+    unless MKL runs in its conditional numerical reproducibility mode, which rockfrac turns on before
+    MKL loads (linear._choose_mkl_reproducibility: MKL_CBWR=AUTO) and a user's own choice overrides."""
+    code = """if True:
+        import numpy as np, scipy.sparse as sp
+        from rockfrac.solve import linear
+        s = linear.make_solver("pardiso")
+        s.begin_step()
+        a = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(3000, 3000), format="csr")
+        s.factorize(a).solve(np.ones(3000))
+        print(s._solver.libmkl.MKL_CBWR_Get(1))  # the branch: 1 off, 2 AUTO, 3 COMPATIBLE
+    """
+    env = {k: v for k, v in os.environ.items() if k != "MKL_CBWR"}
+    branch = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120,
+                             env=dict(env, **extra)).stdout.split()[-1] for extra in ({}, {"MKL_CBWR": "COMPATIBLE"})]
+    assert branch == ["2", "3"]

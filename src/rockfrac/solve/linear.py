@@ -72,6 +72,7 @@ def _find_mkl_runtime() -> None:
     runtime is found directly, pypardiso searches as before.
     """
     _choose_mkl_threading()
+    _choose_mkl_reproducibility()
     if os.environ.get("PYPARDISO_MKL_RT"):
         return
     for folder in ("lib", os.path.join("Library", "bin")):
@@ -79,6 +80,23 @@ def _find_mkl_runtime() -> None:
         if found:
             os.environ["PYPARDISO_MKL_RT"] = found[0]
             return
+
+
+def _choose_mkl_reproducibility() -> None:
+    """Run MKL in its conditional numerical reproducibility mode (``MKL_CBWR=AUTO``, before MKL
+    loads), unless the user chose a mode.
+
+    PARDISO on its OpenMP threads (systems of ``Pardiso.serial_below`` rows and more) otherwise
+    factorizes the same matrix to different last bits from one call to the next, as the threads'
+    partial sums meet in a different order. On an ill-conditioned saddle point (RP surfaces on every
+    edge of the 0.9 mm disc: 40976 rows, augmentation 1e15 Pa/m) the solutions of repeated
+    factorizations differed by 2e-6 relative in four processes out of five, and a run that decides
+    active sets from them took another path (250 against 448 steps, benchmarks/README.md,
+    "Fragmentation"). In the CNR mode every call gives the same bits; one-thread solves (smaller
+    systems, the paper's study) are unchanged.
+    """
+    if not os.environ.get("MKL_CBWR"):
+        os.environ["MKL_CBWR"] = "AUTO"
 
 
 def _choose_mkl_threading() -> None:

@@ -2,7 +2,7 @@
 step sizes, run until the load falls below half its peak (``--stop-fraction``: another fraction).
 
 One command: ``.venv/bin/python benchmarks/fragmentation.py [--specimen disc|grains] [--size S]``
-(the disc: about 15 minutes on 2 cores). ``--specimen grains``: the grain-matrix specimen of
+(the disc: about an hour on 2 cores, most of it viscous RP). ``--specimen grains``: the grain-matrix specimen of
 :func:`grains_case` in unconfined compression instead (Gmsh quads of 4 mm: about 10,400 internal
 edges), table ``fragmentation-grains``. The disc of examples/rock_tests/brazilian (50 mm, loaded over two 10 deg arcs) meshed at
 ``--size`` (0.9 mm: about 5,100 internal edges), the bilinear law of everywhere.toml on every internal

@@ -232,16 +232,15 @@ def newton_step(
             assert last_du is not None  # set by every iteration before this one
             rel_e = abs(model.dot(last_du, r)) / energy0 if energy0 else 0.0
             result.energies.append(rel_e)
-            # a state switch in this iterate (constrained <-> plastic) is part of the residual just
-            # computed (multiplier rows included), so a small residual is an equilibrium of it: a
-            # point sitting on its yield surface (dgamma ~ 0) may flip without holding convergence up
             # a rigid load step under an opening control is linear from an equilibrium: the energy of
             # its (round-off) residual relative to round-off says nothing
             held = control is not None and control.rigid_ok and rigid
-            # an iterate that switched points with its residual at round-off (ROUNDOFF x the tolerance) is
-            # an equilibrium of its active set, whatever the energy norm says: that norm weighs the residual
-            # by the switching correction, relative to the step's first (small) one (points on their yield
-            # surfaces flipping back and forth, each flip an equilibrium to round-off, would otherwise cycle)
+            # a state switch in this iterate (constrained <-> plastic) is part of the residual just
+            # computed (multiplier rows included), so a small residual is an equilibrium of its active
+            # set, whatever the energy norm says: that norm weighs the residual by the switching
+            # correction. Such an iterate converges with its residual at round-off (ROUNDOFF x the
+            # tolerance), or within tolerance once the iteration has come back to it (_returned):
+            # points on their yield surfaces flipping back and forth would otherwise cycle
             settled = (rel_e <= options.tol_energy or held
                        or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual)
                        or _returned(result.residuals, result.switched, options.tol_residual))

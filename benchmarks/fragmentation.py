@@ -17,6 +17,10 @@ peak load, the dissipated energy (the work of the forces, and the law's own acco
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
 run followed a snap-back), and how the run ended. Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
+A run stopped by SIGINT/SIGTERM publishes nothing. Long runs may span sessions: ``--checkpoint-every N``
+saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
+of an uninterrupted run; its wall time, the sum of its parts', counts the steps redone since the last
+checkpoint; each part is in the run folder's segments.json).
 """
 
 from __future__ import annotations
@@ -83,6 +87,17 @@ def run_key(rec: dict) -> str:
     return f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
 
 
+def segment(out: Path, wall: float, summary, resumed: bool) -> float:
+    """Record a run's segment (its wall time, steps and end) in out/segments.json, a fresh run's
+    replacing any earlier ones; returns the run's wall time so far, the sum of its segments' [s]."""
+    path = out / "segments.json"
+    done = json.loads(path.read_text()) if resumed and path.exists() else []
+    done.append({"date": time.strftime("%Y-%m-%d %H:%M"), "wall_s": wall, "steps": int(summary.result.steps),
+                 "load_average": os.getloadavg()[0], "stopped_by": summary.stop_signal})
+    path.write_text(json.dumps(done, indent=1))
+    return sum(seg["wall_s"] for seg in done)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
@@ -93,6 +108,11 @@ def main() -> None:
                     help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
     ap.add_argument("--stop-fraction", type=float, default=0.5,
                     help="stop once the load falls below this fraction of its peak (0.5)")
+    ap.add_argument("--checkpoint-every", type=int, default=0,
+                    help="save a checkpoint every n converged steps (0: never), for --resume")
+    ap.add_argument("--resume", action="store_true",
+                    help="continue each run from the checkpoint in its folder (a run without one starts afresh); "
+                         "its wall time is the sum of its segments'")
     args = ap.parse_args()
     from rockfrac.case.schema import parse_case
     from rockfrac.output.csvout import read_csv
@@ -102,7 +122,7 @@ def main() -> None:
     runs.mkdir(parents=True, exist_ok=True)
     size = args.size or SIZE[args.specimen]
     base = disc_case(size, runs) if args.specimen == "disc" else grains_case(size, runs)
-    base["output"] = {"vtk": False, "picture": False, "points": False}
+    base["output"] = {"vtk": False, "picture": False, "points": False, "checkpoint_every": args.checkpoint_every}
     visc, reaction = VISCOSITY[args.specimen], REACTION[args.specimen]
     if args.displacement is not None:  # the same relaxation time per metre of loading: a stage is one unit of
         visc *= (1e-4 if args.specimen == "disc" else 1e-3) / args.displacement  # pseudo-time
@@ -145,9 +165,14 @@ def main() -> None:
             elif form == "ep":
                 d["solver"] = {"fallback": "implex"}
             out = runs / f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}"
+            resume = args.resume and (out / "checkpoint.npz").exists()
             t0 = time.perf_counter()
-            s = run_case(parse_case(d), out, overwrite=True)
-            wall = time.perf_counter() - t0
+            s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
+            wall = segment(out, time.perf_counter() - t0, s, resume)
+            if s.stop_signal:  # stopped early (SIGINT/SIGTERM): no row; --resume continues it
+                print(f"{variant} {steps}: stopped by {s.stop_signal} after {s.result.steps} steps; "
+                      "nothing published" + (" (--resume continues it)" if args.checkpoint_every else ""), flush=True)
+                return
             h = read_csv(out / "history.csv")
             log = (out / "run.log").read_text()
             r = np.abs(h[reaction])
@@ -166,6 +191,7 @@ def main() -> None:
             rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"],
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
+                   "segments": len(json.loads((out / "segments.json").read_text())),
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
@@ -190,7 +216,7 @@ def main() -> None:
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
         rows.append([v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control",
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
-                     rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}",
+                     rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}" + (f" ({rec['segments']} parts)" if rec.get("segments", 1) > 1 else ""),
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
                      f"{rec['D_surface_law']:.4g}", f"{rec['D_viscous']:.4g}", rec.get("pieces", "-"),
                      f"{1e3 * rec['separated_m']:.1f}" if "separated_m" in rec else "-",

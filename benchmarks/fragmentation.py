@@ -102,7 +102,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
     ap.add_argument("--size", type=float, default=None, help="element size [m] (disc 0.0009, grains 0.004)")
-    ap.add_argument("--variants", nargs="+", default=["ep", "ep viscous", "rp", "rp viscous"])
+    ap.add_argument("--variants", nargs="*", default=["ep", "ep viscous", "rp", "rp viscous"],
+                    help="the runs to make (none: publish the saved ones' table again)")
     ap.add_argument("--steps", type=int, nargs="+", default=[100, 200])
     ap.add_argument("--displacement", type=float, default=None,
                     help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
@@ -110,6 +111,8 @@ def main() -> None:
                     help="stop once the load falls below this fraction of its peak (0.5)")
     ap.add_argument("--checkpoint-every", type=int, default=0,
                     help="save a checkpoint every n converged steps (0: never), for --resume")
+    ap.add_argument("--note", default=None,
+                    help="a remark on this invocation's runs (e.g. what shared the machine), under the table")
     ap.add_argument("--resume", action="store_true",
                     help="continue each run from the checkpoint in its folder (a run without one starts afresh); "
                          "its wall time is the sum of its segments'")
@@ -191,7 +194,7 @@ def main() -> None:
             rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"],
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
-                   "segments": len(json.loads((out / "segments.json").read_text())),
+                   "segments": len(json.loads((out / "segments.json").read_text())), "note": args.note,
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
@@ -208,13 +211,15 @@ def main() -> None:
             record["runs"][run_key(rec)] = rec
             print(variant, steps, rec, flush=True)
     order = {"ep": 0, "ep viscous": 1, "rp": 2, "rp viscous": 3}
-    rows = []
-    for rec in sorted(record["runs"].values(),
-                      key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0), -r.get("stop_fraction", 0.5),
-                                     r["nominal_steps"])):
+    rows, labels = [], []
+    ordered = sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0),
+                                                             -r.get("stop_fraction", 0.5), r["nominal_steps"]))
+    for rec in ordered:
         v = rec["variant"]
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
-        rows.append([v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control",
+        label = v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control"
+        labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
+        rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",
                      rec["implex_from_step"] if rec["implex_from_step"] is not None else "-", f"{rec['wall_s']:.0f}" + (f" ({rec['segments']} parts)" if rec.get("segments", 1) > 1 else ""),
                      f"{rec['peak_N_per_m'] / 1e3:.3g}", f"{rec['end_fraction']:.2f}", f"{rec['D_dissipated']:.4g}",
@@ -229,7 +234,10 @@ def main() -> None:
                             "D (law) [J/m]", "D (viscous) [J/m]", "pieces", "separated [mm]",
                             "u end / u at peak", "in pieces from step (F / peak)", "ended", "ran (date, load)"],
                            rows)
-    publish(name, record, lines)
+    m = record["machine"]
+    notes = [f"{label}: {rec['note']}" for label, rec in zip(labels, ordered) if rec.get("note")]
+    publish(name, record, lines, footer=f"{m['cpu']}, {m['cores']} cores; each row's date and load average (at its "
+            "end) are its own run's." + "".join(f" {n}" + ("" if n.endswith(".") else ".") for n in notes))
 
 
 if __name__ == "__main__":

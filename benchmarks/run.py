@@ -292,16 +292,16 @@ def markdown_table(headers: list[str], rows: list[list]) -> list[str]:
             *("| " + " | ".join(str(c) for c in row) + " |" for row in rows)]
 
 
-def publish(name: str, record: dict, lines: list[str]) -> None:
+def publish(name: str, record: dict, lines: list[str], footer: str | None = None) -> None:
     """Finish a benchmark: the load average at its end into ``record`` (which holds ``machine`` and
     ``load_start``), ``results/<name>.json``, and the table ``lines`` with a line naming the machine
-    and the load, printed and put between the ``<name>-table`` markers of README.md (underscores as
-    dashes)."""
+    and the load (or ``footer``, for a table whose rows carry their own), printed and put between the
+    ``<name>-table`` markers of README.md (underscores as dashes)."""
     record["load_end"] = os.getloadavg()
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / f"{name}.json").write_text(json.dumps(record, indent=1))
     m, load = record["machine"], (record["load_start"][0], record["load_end"][0])
-    lines = lines + ["", f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, "
+    lines = lines + ["", footer or f"{m['cpu']}, {m['cores']} cores; load average {load[0]:.2f} at the start, "
                      f"{load[1]:.2f} at the end."]
     print("\n".join(lines))
     replace_table(name.replace("_", "-") + "-table", lines)

@@ -17,7 +17,7 @@ peak load, the dissipated energy (the work of the forces, and the law's own acco
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
 run followed a snap-back), and how the run ended. Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
-A run stopped by SIGINT/SIGTERM publishes nothing. Long runs may span sessions: ``--checkpoint-every N``
+A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
 of an uninterrupted run; its wall time, the sum of its parts', counts the steps redone since the last
 checkpoint; each part is in the run folder's segments.json).
@@ -143,7 +143,10 @@ def main() -> None:
                 if "variant" in v:
                     v.setdefault("displacement_m", default)
                     record["runs"][run_key(v)] = v
+    stopped = False
     for variant in args.variants:
+        if stopped:
+            break
         form = variant.split()[0]
         for steps in args.steps:
             d = json.loads(json.dumps(base))
@@ -172,10 +175,11 @@ def main() -> None:
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
             wall = segment(out, time.perf_counter() - t0, s, resume)
-            if s.stop_signal:  # stopped early (SIGINT/SIGTERM): no row; --resume continues it
-                print(f"{variant} {steps}: stopped by {s.stop_signal} after {s.result.steps} steps; "
-                      "nothing published" + (" (--resume continues it)" if args.checkpoint_every else ""), flush=True)
-                return
+            if s.stop_signal:  # stopped early (SIGINT/SIGTERM): no row (--resume continues it), no more runs
+                print(f"{variant} {steps}: stopped by {s.stop_signal} after {s.result.steps} steps; no row"
+                      + (" (--resume continues it)" if args.checkpoint_every else ""), flush=True)
+                stopped = True
+                break
             h = read_csv(out / "history.csv")
             log = (out / "run.log").read_text()
             r = np.abs(h[reaction])

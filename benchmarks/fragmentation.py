@@ -118,6 +118,7 @@ def main() -> None:
                          "its wall time is the sum of its segments'")
     args = ap.parse_args()
     from rockfrac.case.schema import parse_case
+    from rockfrac.output import checkpoint
     from rockfrac.output.csvout import read_csv
     from rockfrac.runner import run_case
 
@@ -171,7 +172,7 @@ def main() -> None:
             elif form == "ep":
                 d["solver"] = {"fallback": "implex"}
             out = runs / f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}"
-            resume = args.resume and (out / "checkpoint.npz").exists()
+            resume = args.resume and (out / checkpoint.FILE).exists()
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
             wall = segment(out, time.perf_counter() - t0, s, resume)

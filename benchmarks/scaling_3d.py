@@ -87,6 +87,12 @@ class TimedSolver:
     def __init__(self, inner, timing: dict):
         self.inner, self.timing, self.name = inner, timing, inner.name
 
+    def begin_step(self) -> None:
+        self.inner.begin_step()
+
+    def notes(self) -> list[str]:
+        return self.inner.notes()
+
     def factorize(self, a):
         t = time.perf_counter()
         f = self.inner.factorize(a)

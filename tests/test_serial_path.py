@@ -150,7 +150,8 @@ def run(case: dict, serial: bool, monkeypatch) -> tuple[np.ndarray, np.ndarray]:
     with the serial path everywhere (serial) or nowhere (every threshold 0)."""
     built = build(parse_case(case, "t.toml"))
     solver = linear.make_solver("auto")
-    solver.serial_below = 10**9 if serial else 0  # read by PARDISO only
+    pardiso = solver.first if isinstance(solver, linear.Checked) else solver  # PARDISO, checked under 'auto'
+    pardiso.serial_below = 10**9 if serial else 0  # read by PARDISO only
     monkeypatch.setattr(threads, "FORCE", "serial" if serial else "parallel")
     rows = []
     run_stages(built.model, built.stages, solver, NewtonOptions(), SteppingOptions(),
@@ -219,7 +220,7 @@ def test_threaded_pardiso_runs_in_mkl_reproducible_mode():
     code = """if True:
         import numpy as np, scipy.sparse as sp
         from rockfrac.solve import linear
-        s = linear.make_solver("pardiso")
+        s = linear.make_solver("pardiso").first  # PARDISO itself (make_solver checks its solves)
         s.begin_step()
         a = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(3000, 3000), format="csr")
         s.factorize(a).solve(np.ones(3000))

@@ -42,7 +42,7 @@ from rockfrac.output.observers import (
     VtkSeriesWriter,
     position_from_arrays,
 )
-from rockfrac.solve.linear import Handover, make_solver
+from rockfrac.solve.linear import make_solver
 from rockfrac.solve.newton import NewtonOptions
 from rockfrac.solve.stepping import Position, RunResult, StepInfo, SteppingOptions, run_stages
 from rockfrac.solve.stop import stop_on_signals
@@ -430,8 +430,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         return RunSummary(result, out, wall, peak, run["iters"], built, warnings,
                           stop_signal=request.reason, exit_code=request.exit_code)
     log(f"end: {result.message} after {result.steps} steps, {wall:.3f} s")
-    if isinstance(solver, Handover) and solver.failed:
-        log(f"linear solver: {solver.first.name} failed ({solver.failed}); {solver.then.name} solved from then on")
+    for note in solver.notes():
+        log(f"linear solver: {note}")
     if history.pieces is not None and history.pieces.count > 1:
         sizes = ", ".join(f"{v:.4g}" for v in history.pieces.size[:3]) + (", ..." if history.pieces.count > 3 else "")
         log(f"fragments: the body ends in {history.pieces.count} pieces of {sizes} "

@@ -470,7 +470,7 @@ def test_auto_on_ranks_takes_gamg_for_large_3d_models_and_hands_over_to_mumps(tm
     gives the serial history: 3D cohesive surfaces on ranks (MUMPS's LU of 3D models on ranks: the
     embedded bands and planes of CASES)."""
     from rockfrac.parallel.solvers import KrylovGAMG, MumpsLU, distributed_solver
-    from rockfrac.solve.iterative import Handover
+    from rockfrac.solve.fallback import Handover
     from rockfrac.solve.linear import AMG_FROM_3D
 
     big = distributed_solver("auto", AMG_FROM_3D, 3)

@@ -9,7 +9,7 @@ import numpy as np
 
 from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
-from rockfrac.solve.iterative import Handover
+from rockfrac.solve.fallback import Handover
 from rockfrac.solve.linear import AMG_FROM_3D
 from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp, saddle_options, split_fields
 
@@ -41,6 +41,12 @@ class DistributedSolver(OneFactorAlive):
     options: dict[str, str] = {}
     rigid_modes = False  # give the preconditioner the rigid-body modes as its near-null space
     krylov = False  # an iterative solver: a Schur field split where there are multipliers
+
+    def begin_step(self) -> None:
+        return None
+
+    def notes(self) -> list[str]:
+        return []
 
     def factorize(self, a: DistributedMatrix) -> _Factor:
         PETSc = petsc()

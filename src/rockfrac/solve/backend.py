@@ -26,6 +26,12 @@ class Factorization(Protocol):
 class LinearSolver(Protocol):
     name: str
 
+    def begin_step(self) -> None:
+        """A load step starts (a backend may refresh per-step data: PARDISO's analysis)."""
+
+    def notes(self) -> list[str]:
+        """What the run's log should say about the backend's solves (a handover, inaccurate solves)."""
+
     def factorize(self, a: sp.csr_matrix) -> Factorization: ...
 
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
@@ -66,6 +72,12 @@ class _Backend:
 
     name = ""
     dense_up_to = 0
+
+    def begin_step(self) -> None:
+        return None
+
+    def notes(self) -> list[str]:
+        return []
 
     def factorize(self, a: sp.csr_matrix) -> Factorization:
         if a.shape[0] <= self.dense_up_to:

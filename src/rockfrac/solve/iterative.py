@@ -7,7 +7,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from rockfrac.solve.backend import Factorization, LinearSolver, SolverFailed, _Backend
+from rockfrac.solve.backend import Factorization, SolverFailed, _Backend
 
 class _KrylovSolve:
     """GMRES on a with a preconditioner, applied from the left (SciPy's M) or, ``right``, as GMRES
@@ -123,38 +123,3 @@ def rigid_modes_3d(x: np.ndarray) -> np.ndarray:
     b[:, 0, 4], b[:, 2, 4] = c[:, 2], -c[:, 0]  # about y
     b[:, 0, 5], b[:, 1, 5] = -c[:, 1], c[:, 0]  # about z
     return b.reshape(3 * n, 6)
-
-
-class Handover:
-    """An iterative backend that hands over to a direct one, for the rest of the run, at its first
-    failure (a factorization or a solve that raises SolverFailed): ``auto``'s 3D choice."""
-
-    def __init__(self, first: LinearSolver, then: LinearSolver):
-        self.first, self.then = first, then
-        self.name = f"{first.name}, then {then.name} if it fails"
-        self.failed = ""  # why the first backend was given up ("" while it is used)
-
-    def factorize(self, a: sp.csr_matrix) -> Factorization:
-        if not self.failed:
-            try:
-                return _HandoverFactor(self, self.first.factorize(a), a)
-            except SolverFailed as err:
-                self.failed = str(err)
-        return self.then.factorize(a)
-
-    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
-        return self.factorize(a).solve(b)
-
-
-class _HandoverFactor:
-    def __init__(self, owner: Handover, factor: Factorization, a: sp.csr_matrix):
-        self._owner, self._factor, self._a = owner, factor, a
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        if not self._owner.failed:
-            try:
-                return self._factor.solve(b)
-            except SolverFailed as err:
-                self._owner.failed = str(err)
-                self._factor = self._owner.then.factorize(self._a)
-        return self._factor.solve(b)

@@ -32,7 +32,8 @@ from rockfrac.solve.backend import (  # noqa: F401 (the contract and SuperLU, re
     _DenseLU,
     is_symmetric,
 )
-from rockfrac.solve.iterative import Handover, KrylovAMG, rigid_modes_3d  # noqa: F401 (re-exported)
+from rockfrac.solve.fallback import Checked, Handover  # noqa: F401 (re-exported)
+from rockfrac.solve.iterative import KrylovAMG, rigid_modes_3d  # noqa: F401 (re-exported)
 from rockfrac.solve.petsc import PetscDirect, PetscGAMG, PetscHypre
 
 
@@ -407,10 +408,13 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
     (and to tell RP multipliers, numbered after the displacements, from them).
     'auto' on a 3D model of at least AMG_FROM_3D dofs (RP multipliers or not) without nodal cracks'
     ``enrichment`` (their unknowns span the region that may crack: a Schur block as large as that
-    is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure."""
+    is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure.
+    PARDISO's solves are checked (``Checked``): under 'auto' SuperLU retries an inaccurate one and
+    takes over where it is accurate; chosen by name, they are counted in the run's log."""
     if name == "auto":
         installed = available()
-        direct = SOLVERS[next(n for n in PREFERENCE if n in installed)]()
+        first = next(n for n in PREFERENCE if n in installed)
+        direct: LinearSolver = Checked(Pardiso(), SuperLU()) if first == "pardiso" else SOLVERS[first]()
         three_d = coordinates is not None and coordinates.shape[1] == 3
         if three_d and n_dofs >= AMG_FROM_3D and not enrichment and "gmres-amg" in installed:
             return Handover(KrylovAMG(coordinates), direct)
@@ -426,6 +430,8 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
             return PetscGAMG(coordinates)
         if name == "petsc-hypre":
             return PetscHypre(coordinates)
+        if name == "pardiso":
+            return Checked(Pardiso(), None)
         return SOLVERS[name]()
     except ImportError as err:
         raise ValueError(f"linear solver {name!r} is not installed here ({err}); available: {available()}") from None

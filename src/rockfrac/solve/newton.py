@@ -179,7 +179,7 @@ def newton_step(
     else:
         u_lam = lam_n  # start from the converged state; lam becomes an unknown
     model.begin_step()
-    getattr(solver, "begin_step", lambda: None)()  # a backend may refresh per-step data (PARDISO's analysis)
+    solver.begin_step()  # a backend may refresh per-step data (PARDISO's analysis)
     result = NewtonResult(False, u, u_lam, 0)
     energy0 = None
     last_du = None

@@ -1,0 +1,151 @@
+"""Backends made of two: one that hands over to another, for the rest of the run, when it fails
+(``Handover``), and one whose every solve is checked against its equations and retried by another
+where it is not accurate (``Checked``). Both forward ``begin_step`` and report what happened in
+``notes()`` (the run's log)."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from rockfrac.solve.backend import Factorization, LinearSolver, SolverFailed, _DenseLU
+
+# The relative residual ||b - A x|| / ||b|| above which ``Checked`` retries a solve. PARDISO met 3e-9
+# or better on every well-posed system of the test suite (39647 solves, RP and EP surfaces, 2D and
+# 3D, embedded bands); on RP surfaces on every edge of a disc its static pivoting perturbs hundreds
+# of pivots and leaves 1e-3 to 1 (median 3e-2), where SuperLU meets 1e-12 (benchmarks/README.md,
+# "Fragmentation"). A Newton correction this accurate costs no extra iteration (tolerance 1e-8).
+ACCURACY = 1e-6
+
+
+def relative_residual(a: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
+    """||b - A x|| / ||b|| (2-norms over all columns; ||b - A x|| where b = 0); inf if x is not finite."""
+    if not np.all(np.isfinite(x)):
+        return float("inf")
+    r = np.linalg.norm(np.asarray(b).reshape(x.shape) - a @ x)
+    nb = np.linalg.norm(b)
+    return float(r / nb if nb > 0 else r)
+
+
+class Handover:
+    """An iterative backend that hands over to a direct one, for the rest of the run, at its first
+    failure (a factorization or a solve that raises SolverFailed): ``auto``'s 3D choice."""
+
+    def __init__(self, first: LinearSolver, then: LinearSolver):
+        self.first, self.then = first, then
+        self.name = f"{first.name}, then {then.name} if it fails"
+        self.failed = ""  # why the first backend was given up ("" while it is used)
+
+    def begin_step(self) -> None:
+        self.first.begin_step()
+        self.then.begin_step()
+
+    def notes(self) -> list[str]:
+        own = [f"{self.first.name} failed ({self.failed}); {self.then.name} solved from then on"] if self.failed else []
+        return own + self.first.notes() + self.then.notes()
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        if not self.failed:
+            try:
+                return _HandoverFactor(self, self.first.factorize(a), a)
+            except SolverFailed as err:
+                self.failed = str(err)
+        return self.then.factorize(a)
+
+    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        return self.factorize(a).solve(b)
+
+
+class _HandoverFactor:
+    def __init__(self, owner: Handover, factor: Factorization, a: sp.csr_matrix):
+        self._owner, self._factor, self._a = owner, factor, a
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        if not self._owner.failed:
+            try:
+                return self._factor.solve(b)
+            except SolverFailed as err:
+                self._owner.failed = str(err)
+                self._factor = self._owner.then.factorize(self._a)
+        return self._factor.solve(b)
+
+
+class Checked:
+    """A direct backend whose every sparse solve is checked against its equations: a solution that
+    leaves a relative residual above ``accuracy`` is solved again by ``then``. Where ``then``'s meets
+    the accuracy, ``then`` solves for the rest of the run (``first`` has failed on this problem's
+    matrices, e.g. PARDISO's static pivoting on RP saddle points); where it does not either, the
+    system is singular to working precision for that right-hand side (a mechanism under path
+    control's load pattern) and the solution with the smaller residual is returned, ``first`` kept.
+    With ``then = None`` solves are only counted. Dense (tiny) systems are not checked: every direct
+    backend factorizes them alike (LAPACK, with refinement)."""
+
+    def __init__(self, first: LinearSolver, then: LinearSolver | None, accuracy: float = ACCURACY):
+        self.first, self.then, self.accuracy = first, then, accuracy
+        self.name = first.name + (f", checked (then {then.name} where its solves are off)" if then else ", checked")
+        self.handed_over = ""  # why ``then`` took over ("" while ``first`` solves)
+        self.solves = 0  # solves checked
+        self.off = 0  # of them above ``accuracy``
+        self.worst = 0.0  # the largest relative residual of ``first``'s solutions
+
+    def begin_step(self) -> None:
+        self.first.begin_step()
+        if self.then is not None:
+            self.then.begin_step()
+
+    def notes(self) -> list[str]:
+        out = []
+        if self.off:
+            out.append(f"{self.off} of {self.solves} solves by {self.first.name} left relative residuals above "
+                       f"{self.accuracy:g} (the largest {self.worst:.1e})"
+                       + ("" if self.then is not None else "; [solver] linear = 'auto' or 'superlu' retries them"))
+        if self.handed_over:
+            out.append(self.handed_over)
+        return out + self.first.notes() + (self.then.notes() if self.then is not None else [])
+
+    def factorize(self, a: sp.csr_matrix) -> Factorization:
+        if self.handed_over and self.then is not None:
+            return self.then.factorize(a)
+        factor = self.first.factorize(a)
+        if isinstance(factor, _DenseLU):
+            return factor
+        # the values are copied: the caller may reuse its arrays while the factor lives
+        return _CheckedFactor(self, factor, sp.csr_matrix((a.data.copy(), a.indices, a.indptr), shape=a.shape))
+
+    def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray:
+        return self.factorize(a).solve(b)
+
+
+class _CheckedFactor:
+    def __init__(self, owner: Checked, factor: Factorization, a: sp.csr_matrix):
+        self._owner, self._factor, self._a = owner, factor, a
+        self._retry: Factorization | None = None  # ``then``'s factors of the same matrix, once made
+        self._switched = False
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        owner = self._owner
+        x = self._factor.solve(b)
+        if self._switched:
+            return x
+        res = relative_residual(self._a, x, b)
+        owner.solves += 1
+        owner.worst = max(owner.worst, res)
+        if res <= owner.accuracy:
+            return x
+        owner.off += 1
+        if owner.then is None:
+            return x
+        try:
+            if self._retry is None:
+                self._retry = owner.then.factorize(self._a)
+            y = self._retry.solve(b)
+        except RuntimeError:  # SolverFailed, or SuperLU's "exactly singular": first's solution stands
+            return x
+        res_then = relative_residual(self._a, y, b)
+        if res_then <= owner.accuracy:
+            owner.handed_over = (f"{owner.first.name}'s solution of a {self._a.shape[0]}-row system left a relative "
+                                 f"residual of {res:.1e} where {owner.then.name}'s met {owner.accuracy:g} "
+                                 f"({res_then:.1e}); {owner.then.name} solved from then on")
+            self._factor, self._switched = self._retry, True
+            return y
+        return y if res_then < res else x

@@ -1,0 +1,178 @@
+"""Checked solves: a backend's solution is checked against its equations, and an inaccurate one is
+solved again by another backend, which takes over for the rest of the run where it is accurate
+(PARDISO's static pivoting on RP saddle points, benchmarks/README.md "Fragmentation")."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from test_linear_solvers import rp_case, tangents
+
+from rockfrac.solve import linear
+from rockfrac.solve.fallback import ACCURACY, Checked, relative_residual
+
+needs_pardiso = pytest.mark.skipif("pardiso" not in linear.available(), reason="PARDISO (pypardiso) not installed")
+
+
+class Perturbed(linear.SuperLU):
+    """Factors of A + delta max|A| I instead of A: what a static pivoting backend does to pivots it
+    finds too small, here to every one. Counts its factorizations and steps."""
+
+    name = "perturbed"
+    dense_up_to = 0
+
+    def __init__(self, delta: float):
+        self.delta, self.factorizations, self.steps = delta, 0, 0
+
+    def begin_step(self) -> None:
+        self.steps += 1
+
+    def _factorize(self, a):
+        self.factorizations += 1
+        return spla.splu((a + self.delta * abs(a).max() * sp.eye(a.shape[0])).tocsc())
+
+
+class Counting(linear.SuperLU):
+    name = "counting"
+    dense_up_to = 0
+
+    def __init__(self):
+        self.factorizations, self.steps = 0, 0
+
+    def begin_step(self) -> None:
+        self.steps += 1
+
+    def _factorize(self, a):
+        self.factorizations += 1
+        return super()._factorize(a)
+
+
+@pytest.fixture(scope="module")
+def saddle():
+    """The paper's RP specimen on 16 x 16 quads, its CSE still rigid: a real saddle point (zero
+    diagonals on its multiplier rows), 600-odd rows."""
+    a = tangents(rp_case(16), 21)[20]
+    assert a.shape[0] > linear.DENSE_UP_TO and (a.diagonal() == 0).any()
+    return a
+
+
+def test_relative_residual():
+    a = sp.csr_matrix(np.array([[2.0, 0.0], [0.0, 4.0]]))
+    b = np.array([2.0, 4.0])
+    assert relative_residual(a, np.array([1.0, 1.0]), b) == 0.0
+    assert relative_residual(a, np.array([1.0, 0.0]), b) == pytest.approx(4.0 / np.hypot(2.0, 4.0), rel=1e-15)
+    assert relative_residual(a, np.array([0.5, 0.0]), np.zeros(2)) == 1.0  # b = 0: the residual itself
+    assert relative_residual(a, np.array([np.nan, 1.0]), b) == np.inf
+    two = np.column_stack([b, 2 * b])  # path following's two right-hand sides
+    assert relative_residual(a, np.column_stack([[1.0, 1.0], [2.0, 2.0]]), two) == 0.0
+
+
+def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over(saddle):
+    rng = np.random.default_rng(0)
+    first, then = Perturbed(1e-9), Counting()
+    solver = Checked(first, then)
+    solver.begin_step()
+    assert first.steps == then.steps == 1  # both are told a step starts
+    b = rng.standard_normal(saddle.shape[0])
+    exact = spla.splu(saddle.tocsc()).solve(b)
+    assert relative_residual(saddle, first.factorize(saddle).solve(b), b) > 1e3 * ACCURACY  # really off
+    first.factorizations = 0
+    factor = solver.factorize(saddle)
+    assert first.factorizations == 1 and then.factorizations == 0 and not solver.handed_over
+    x = factor.solve(b)
+    assert then.factorizations == 1 and relative_residual(saddle, x, b) < 1e-12
+    assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
+    assert "perturbed's solution of a" in solver.handed_over and "counting solved from then on" in solver.handed_over
+    y = factor.solve(2 * b)  # the same factor's next solve: the accurate factors, not checked again
+    assert then.factorizations == 1 and solver.solves == 1 and np.abs(y - 2 * x).max() <= 1e-12 * np.abs(x).max()
+    solver.factorize(saddle).solve(b)  # from then on the first backend is not asked
+    assert first.factorizations == 1 and then.factorizations == 2
+    notes = solver.notes()
+    assert len(notes) == 2 and "1 of 1 solves by perturbed left relative residuals above 1e-06" in notes[0]
+    assert "solved from then on" in notes[1]
+
+
+def test_an_accurate_solve_is_the_first_backends_own(saddle):
+    b = np.random.default_rng(1).standard_normal(saddle.shape[0])
+    first, then = Counting(), Counting()
+    solver = Checked(first, then)
+    x = solver.factorize(saddle).solve(b)
+    assert first.factorizations == 1 and then.factorizations == 0 and not solver.handed_over and solver.notes() == []
+    assert np.array_equal(x, first.factorize(saddle).solve(b))  # bit for bit what the first backend gives
+    assert solver.solves == 1 and solver.off == 0 and 0 < solver.worst <= ACCURACY
+
+
+def test_a_singular_system_keeps_the_first_backend_and_the_better_solution():
+    """A mechanism (a zero row and column): no backend solves it, the other one raises; the first
+    backend's solution is returned, and it keeps solving."""
+    n = 300
+    a = sp.diags([np.r_[np.ones(n - 1), 0.0] * 4.0, -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="lil")
+    a[n - 2, n - 1] = a[n - 1, n - 2] = 0.0
+    a = a.tocsr()
+    b = np.ones(n)
+    first, then = Perturbed(1e-6), Counting()
+    solver = Checked(first, then)
+    x = solver.factorize(a).solve(b)  # SuperLU: "exactly singular"
+    assert then.factorizations == 1 and not solver.handed_over and np.all(np.isfinite(x))
+    assert np.array_equal(x, first.factorize(a).solve(b))
+    solver.factorize(a).solve(b)
+    assert first.factorizations == 3 and solver.off == 2
+    assert "2 of 2 solves by perturbed" in solver.notes()[0]
+
+
+def test_of_two_inaccurate_solutions_the_smaller_residual_is_returned(saddle):
+    b = np.random.default_rng(2).standard_normal(saddle.shape[0])
+    worse, better = Perturbed(1e-6), Perturbed(1e-9)
+    x = Checked(worse, better).factorize(saddle).solve(b)
+    assert np.array_equal(x, better.factorize(saddle).solve(b))
+    assert relative_residual(saddle, x, b) > ACCURACY
+    x = Checked(better, Perturbed(1e-6)).factorize(saddle).solve(b)
+    assert np.array_equal(x, better.factorize(saddle).solve(b))
+
+
+def test_unchecked_alternative_only_counts(saddle):
+    b = np.random.default_rng(3).standard_normal(saddle.shape[0])
+    first = Perturbed(1e-9)
+    solver = Checked(first, None)
+    x = solver.factorize(saddle).solve(b)
+    assert np.array_equal(x, first.factorize(saddle).solve(b))
+    assert solver.off == 1 and "linear = 'auto' or 'superlu' retries them" in solver.notes()[0]
+
+
+def test_tiny_systems_are_not_checked():
+    a = sp.csr_matrix(np.diag(np.arange(1.0, 11.0)))
+    first = Counting()
+    first.dense_up_to = linear.DENSE_UP_TO
+    solver = Checked(first, Counting())
+    factor = solver.factorize(a)
+    assert type(factor).__name__ == "_DenseLU" and first.factorizations == 0
+    factor.solve(np.ones(10))
+    assert solver.solves == 0
+
+
+@needs_pardiso
+def test_pardiso_is_checked_by_superlu_under_auto_and_checked_alone_by_name():
+    auto = linear.make_solver("auto")
+    assert isinstance(auto, Checked) and isinstance(auto.first, linear.Pardiso)
+    assert isinstance(auto.then, linear.SuperLU)
+    named = linear.make_solver("pardiso")
+    assert isinstance(named, Checked) and isinstance(named.first, linear.Pardiso) and named.then is None
+    assert isinstance(linear.make_solver("superlu"), linear.SuperLU)
+
+
+@needs_pardiso
+def test_a_load_step_reaches_pardiso_through_every_wrapper():
+    """begin_step (a fresh analysis at a step's first factorization) reaches PARDISO inside a checked
+    backend inside a handover, as on a large 3D model under 'auto'."""
+    pytest.importorskip("pyamg")
+    x3 = np.random.default_rng(0).uniform(size=(10, 3))
+    solver = linear.make_solver("auto", x3, linear.AMG_FROM_3D)
+    assert isinstance(solver, linear.Handover) and isinstance(solver.then, Checked)
+    pardiso = solver.then.first
+    a = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(500, 500), format="csr")
+    pardiso.factorize(a)
+    pardiso.factorize(a)
+    assert pardiso.analyses == 1
+    solver.begin_step()
+    pardiso.factorize(a)
+    assert pardiso.analyses == 2

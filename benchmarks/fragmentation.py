@@ -87,6 +87,17 @@ def run_key(rec: dict) -> str:
     return f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
 
 
+def solver_label(rec: dict) -> str:
+    """The linear solver a run used: PARDISO unchecked before its solves were checked (rows without
+    the log's solver lines), checked, or checked and then SuperLU once an inaccurate solve was retried."""
+    lines = rec.get("solver")
+    if lines is None:
+        return "PARDISO, unchecked"
+    if any("solved from then on" in ln for ln in lines):
+        return "PARDISO, then SuperLU"
+    return "PARDISO, checked" if lines and lines[0].startswith("pardiso, checked") else lines[0].split(" ([solver]")[0]
+
+
 def segment(out: Path, wall: float, summary, resumed: bool) -> float:
     """Record a run's segment (its wall time, steps and end) in out/segments.json, a fresh run's
     replacing any earlier ones; returns the run's wall time so far, the sum of its segments' [s]."""
@@ -200,6 +211,7 @@ def main() -> None:
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
                    "segments": len(json.loads((out / "segments.json").read_text())), "note": args.note,
+                   "solver": [ln.split("linear solver: ", 1)[1] for ln in log.splitlines() if "linear solver: " in ln],
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
@@ -232,12 +244,13 @@ def main() -> None:
                      f"{1e3 * rec['separated_m']:.1f}" if "separated_m" in rec else "-",
                      f"{rec['u_end_over_peak']:.2f}" if "u_end_over_peak" in rec else "-",
                      f"{rec['split_step']} ({rec['split_load_fraction']:.2f})" if rec.get("split_step") else "-",
-                     rec["ended"],
+                     rec["ended"], solver_label(rec),
                      f"{rec['date']}, {rec['load_average']:.2f}"])
     lines = markdown_table(["form", "nominal steps", "displacement [mm]", "interface points", "steps", "Newton it./step",
                             "IMPL-EX from step", "wall [s]", "peak [kN/m]", "end / peak", "D (work) [J/m]",
                             "D (law) [J/m]", "D (viscous) [J/m]", "pieces", "separated [mm]",
-                            "u end / u at peak", "in pieces from step (F / peak)", "ended", "ran (date, load)"],
+                            "u end / u at peak", "in pieces from step (F / peak)", "ended", "linear solver",
+                            "ran (date, load)"],
                            rows)
     m = record["machine"]
     notes = [f"{label}: {rec['note']}" for label, rec in zip(labels, ordered) if rec.get("note")]

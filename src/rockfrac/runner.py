@@ -426,6 +426,8 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
         log(f"end: stopped by {request.reason} after {result.steps} steps, {wall:.3f} s; every converged step is "
             "kept" + (" (rockfrac run --resume continues from the last checkpoint)"
                       if case.output.checkpoint_every else ""))
+        for note in solver.notes():
+            log(f"linear solver: {note}")
         log.close()
         return RunSummary(result, out, wall, peak, run["iters"], built, warnings,
                           stop_signal=request.reason, exit_code=request.exit_code)

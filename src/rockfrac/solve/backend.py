@@ -37,6 +37,15 @@ class LinearSolver(Protocol):
     def solve(self, a: sp.csr_matrix, b: np.ndarray) -> np.ndarray: ...
 
 
+def relative_residual(a: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
+    """||b - A x|| / ||b|| (2-norms over all columns; ||b - A x|| where b = 0); inf if x is not finite."""
+    if not np.all(np.isfinite(x)):
+        return float("inf")
+    r = np.linalg.norm(np.asarray(b).reshape(x.shape) - a @ x)
+    nb = np.linalg.norm(b)
+    return float(r / nb if nb > 0 else r)
+
+
 class _DenseLU:
     """LU with partial pivoting of a small matrix held dense (LAPACK getrf / getrs), and one step
     of iterative refinement per solve (as PARDISO does): the RP saddle points mix entries of 1e7

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from rockfrac.solve.backend import Factorization, LinearSolver, SolverFailed, _DenseLU
+from rockfrac.solve.backend import Factorization, LinearSolver, SolverFailed, _DenseLU, relative_residual
 
 # The relative residual ||b - A x|| / ||b|| above which ``Checked`` retries a solve. PARDISO met 3e-9
 # or better on every well-posed system of the test suite (39647 solves, RP and EP surfaces, 2D and
@@ -16,15 +16,6 @@ from rockfrac.solve.backend import Factorization, LinearSolver, SolverFailed, _D
 # of pivots and leaves 1e-3 to 1 (median 3e-2), where SuperLU meets 1e-12 (benchmarks/README.md,
 # "Fragmentation"). A Newton correction this accurate costs no extra iteration (tolerance 1e-8).
 ACCURACY = 1e-6
-
-
-def relative_residual(a: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
-    """||b - A x|| / ||b|| (2-norms over all columns; ||b - A x|| where b = 0); inf if x is not finite."""
-    if not np.all(np.isfinite(x)):
-        return float("inf")
-    r = np.linalg.norm(np.asarray(b).reshape(x.shape) - a @ x)
-    nb = np.linalg.norm(b)
-    return float(r / nb if nb > 0 else r)
 
 
 class Handover:

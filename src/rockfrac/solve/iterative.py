@@ -7,7 +7,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from rockfrac.solve.backend import Factorization, SolverFailed, _Backend
+from rockfrac.solve.backend import Factorization, SolverFailed, _Backend, relative_residual
 
 class _KrylovSolve:
     """GMRES on a with a preconditioner, applied from the left (SciPy's M) or, ``right``, as GMRES
@@ -40,7 +40,7 @@ class _KrylovSolve:
                 x, info = spla.gmres(self._a, b, M=self._m, rtol=self._rtol, atol=0.0, restart=self._restart,
                                      maxiter=self._maxiter, callback=counter, callback_type="pr_norm")
         self.iterations = count[0]
-        res = float(np.linalg.norm(b - self._a @ x)) / norm_b if np.all(np.isfinite(x)) else np.inf
+        res = relative_residual(self._a, x, b)
         if not res <= 10 * self._rtol:  # the true residual (GMRES's own estimate may stall short of it)
             raise SolverFailed(f"GMRES did not converge: relative residual {res:.2e} after "
                                f"{count[0]} iterations (tolerance {self._rtol:.0e})")

@@ -5,6 +5,8 @@ a CaseError is written there as ``error`` (raised on every rank, so none waits f
 Tasks:
 - ``history``: run the case; per converged step its load factor, Newton iterations, control and
   the displacements and internal forces gathered whole.
+- ``histories``: ``history`` for each case of the case file's ``"cases"`` (name -> case) in this one
+  launch, its results under ``NAME.KEY``; a CaseError is that case's ``NAME.error``.
 - ``history_auto_amg``: ``history`` with 'auto' taking its large-3D choice at any size (GMRES + GAMG
   handing over to MUMPS's LU), and the solver's name.
 - ``system``: assemble at a displacement field given in the case file's ``"u"``; the global
@@ -107,6 +109,17 @@ def system(built, comm, u: np.ndarray) -> dict:
     return out
 
 
+def histories(cases: dict, comm, case_file: str) -> dict:
+    out = {}
+    for name, data in cases.items():
+        try:
+            result = history(build_distributed(parse_case(data, f"{case_file} [{name}]"), comm, case_file), comm)
+        except CaseError as err:
+            result = {"error": np.array(str(err))}
+        out.update({f"{name}.{key}": value for key, value in result.items()})
+    return out
+
+
 class CountingComm:
     """An mpi4py communicator that counts the bytes this rank passes to it."""
 
@@ -168,14 +181,17 @@ def main() -> None:
         import rockfrac.parallel.solvers as solvers
 
         solvers.AMG_FROM_3D = 0
-    try:
-        built = build_distributed(parse_case(data, case_file), comm, case_file)
-        if task == "traffic":
-            result = traffic(built, comm)
-        else:
-            result = history(built, comm) if task.startswith("history") else system(built, comm, u)
-    except CaseError as err:
-        result = {"error": np.array(str(err))}
+    if task == "histories":
+        result = histories(data["cases"], comm, case_file)
+    else:
+        try:
+            built = build_distributed(parse_case(data, case_file), comm, case_file)
+            if task == "traffic":
+                result = traffic(built, comm)
+            else:
+                result = history(built, comm) if task.startswith("history") else system(built, comm, u)
+        except CaseError as err:
+            result = {"error": np.array(str(err))}
     result["ranks"] = np.array(comm.Get_size())
     if comm.rank == 0:
         np.savez(out_file, **result)

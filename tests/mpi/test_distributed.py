@@ -47,7 +47,8 @@ MPI_ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CO
                OMPI_MCA_rmaps_base_oversubscribe="1")
 
 
-def mpirun(n: int, task: str, case: dict, tmp_path: Path, u: np.ndarray | None = None) -> dict:
+def mpirun(n: int, task: str, case: dict, tmp_path: Path, u: np.ndarray | None = None,
+           timeout: float = TIMEOUT) -> dict:
     """Run the driver on n ranks; its results (rank 0's npz)."""
     mpiexec = shutil.which("mpiexec")
     assert mpiexec is not None, "mpiexec is not installed (make test installs openmpi-bin)"
@@ -56,7 +57,7 @@ def mpirun(n: int, task: str, case: dict, tmp_path: Path, u: np.ndarray | None =
     case_file.write_text(json.dumps(data))
     out = tmp_path / f"{task}_{n}.npz"
     cmd = [mpiexec, "-n", str(n), sys.executable, str(HERE / "mpi_driver.py"), task, str(case_file), str(out)]
-    done = subprocess.run(cmd, env=MPI_ENV, capture_output=True, text=True, timeout=TIMEOUT)
+    done = subprocess.run(cmd, env=MPI_ENV, capture_output=True, text=True, timeout=timeout)
     assert done.returncode == 0, f"{' '.join(cmd)} failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     with np.load(out) as f:
         result = {k: f[k] for k in f.files}
@@ -350,9 +351,22 @@ def reference(name: str) -> dict:
     return serial_history({**CASES, "cylinder": plastic_cylinder_case}[name]())
 
 
-@pytest.mark.parametrize("name, n", [(name, n) for name in sorted(CASES) for n in (2, 3)
-                                     if n == 2 or name not in SLOW])
-def test_distributed_history_equals_serial(tmp_path, name, n):
+HISTORIES = {n: [name for name in sorted(CASES) if n == 2 or name not in SLOW] for n in (2, 3)}
+
+
+@functools.cache
+def distributed_histories(n: int) -> dict[str, dict]:
+    """The history of every case of HISTORIES[n] on n ranks, all run in one launch: the interpreter,
+    PETSc and the compiled kernels are loaded once, not once a case (about 2 s each)."""
+    with tempfile.TemporaryDirectory() as folder:
+        cases = {name: CASES[name]() for name in HISTORIES[n]}
+        got = mpirun(n, "histories", {"cases": cases}, Path(folder), timeout=len(cases) * TIMEOUT / 4)
+    return {name: {key.split(".", 1)[1]: value for key, value in got.items() if key.startswith(f"{name}.")}
+            for name in HISTORIES[n]}
+
+
+@pytest.mark.parametrize("name, n", [(name, n) for n in (2, 3) for name in HISTORIES[n]])
+def test_distributed_history_equals_serial(name, n):
     case = CASES[name]()
     ser = reference(name)
     if name == "splitting_path":
@@ -375,7 +389,7 @@ def test_distributed_history_equals_serial(tmp_path, name, n):
         assert np.abs(ser["u"][1]).max() == 0.0 < np.abs(ser["u"][-1]).max()  # at rest at t = 0, then pushed
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
-    par = mpirun(n, "history", case, tmp_path)
+    par = distributed_histories(n)[name]
     assert_same_history(par, ser, any_iterations=name in CHATTY)
     # each rank ran on its piece of the mesh: its own cells and, with embedded cracks, the cells
     # sharing a side (nodal cracks: a node) with them

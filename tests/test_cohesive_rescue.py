@@ -1,6 +1,6 @@
 """The rescue of the cohesive return (rockfrac.laws.cohesive_rescue): the bracketed frozen return, the
-continuation, and the EP return's success on the trials its plain Newton failed (stiff penalties,
-fully softened surfaces in tension, one-step softening through decades)."""
+continuation, and the EP and RP returns' success on the trials their plain Newton failed (stiff
+penalties, fully softened surfaces in tension, one-step softening through decades)."""
 
 import math
 
@@ -198,9 +198,48 @@ def test_the_element_kernel_rescues_its_failed_points_only():
                                rtol=1e-14, atol=1e-300)
 
 
+@pytest.mark.parametrize("case", [c for j, c in enumerate(FAILED_BEFORE) if j != 1])
+def test_the_rp_kernel_rescues_its_failed_points_to_the_ep_return_with_k_equal_to_r(case):
+    """MohrCoulombSurface.rp_points at a constrained point with lambda = 0 and the augmented trial
+    r h (the grains' RP runs stopped on such returns at min_step): the compiled loop fails it, the
+    law's wrapper rescues it, and the return is the EP return with kn = kt = r from T_old = 0 (the
+    same backward-Euler problem), its tangent and its multiplier rows w (T - lambda) included."""
+    from rockfrac.laws.mohr_coulomb_surface import MohrCoulombParameters, MohrCoulombSurface
+
+    kw, k, eps, mag, deg = case
+    law = MohrCoulombSurface(MohrCoulombParameters(**kw))  # rigid-plastic: no penalty
+    du = mag * kw["chi_p"] / k * np.array([math.cos(math.radians(deg)), math.sin(math.radians(deg))])
+    frame, weight, lam = np.eye(2)[None].copy(), np.full(1, 0.5), np.zeros((1, 2))
+    s_old = np.zeros((1, N_STATE))
+    s_old[:, S_EPSN] = s_old[:, S_EPSS] = eps
+
+    def run(kernel_only):
+        s_new, d_new = np.zeros((1, N_STATE)), np.zeros((1, 2, 2))
+        fe, ke = np.zeros((1, 6)), np.zeros((1, 6, 6))
+        status, switched = np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64)
+        args = (frame, weight, du[None].copy(), lam, k, np.zeros(1), np.zeros(1, dtype=bool), s_old,
+                np.zeros((1, 2, 2)), np.zeros(1))
+        if kernel_only:
+            type(law).rp_kernel(*args, law.p, s_new, d_new, fe, ke, status, switched)
+        else:
+            law.rp_points(*args, s_new, d_new, fe, ke, status, switched)
+        return s_new, d_new, fe, status, switched
+
+    assert run(True)[3][0] < 0
+    s_new, d_new, fe, status, switched = run(False)
+    assert status[0] == 1 and switched[0] == 1  # plastic, from the constrained state of the last iterate
+    st, ref, d_ref = _ep(du, CohesiveLaw(**kw, kn=k, kt=k).as_array(), eps)
+    assert st == 1
+    slots = [S_TT, S_TN, S_EPSN, S_EPSS, S_DGAMMA]
+    np.testing.assert_allclose(s_new[0, slots], ref[slots], rtol=1e-9, atol=1e-9 * kw["chi_p"] / k)
+    np.testing.assert_allclose(d_new[0], d_ref, rtol=1e-7, atol=1e-9 * np.abs(d_ref).max())
+    # the multiplier rows: w (T - lambda), lambda = 0
+    np.testing.assert_allclose(fe[0, 4:], 0.5 * ref[[S_TT, S_TN]], rtol=1e-9, atol=1e-9 * kw["chi_p"])
+
+
 def test_a_run_without_failed_points_does_not_compile_the_rescue(tmp_path):
-    """The paper's EP case in a fresh process: no point fails its return, so the rescue kernel is never
-    compiled (nor its first-run cost paid)."""
+    """The paper's EP and RP cases in a fresh process: no point fails its return, so neither rescue
+    kernel is compiled (nor its first-run cost paid)."""
     import subprocess
     import sys
 
@@ -210,7 +249,9 @@ def test_a_run_without_failed_points_does_not_compile_the_rescue(tmp_path):
             "from rockfrac.runner import run_case\n"
             "from rockfrac.laws import mohr_coulomb_surface as M\n"
             f"s = run_case(parse_case(paper_case('ep', 1e9, axial_steps=40)), r'{tmp_path / 'o'}')\n"
-            "print('COMPLETED', s.result.completed, 'RESCUE', len(M.ep_rescue_points.signatures))\n")
+            f"r = run_case(parse_case(paper_case('rp', axial_steps=40)), r'{tmp_path / 'r'}')\n"
+            "print('COMPLETED', s.result.completed, r.result.completed, 'RESCUE', len(M.ep_rescue_points.signatures),\n"
+            "      len(M.rp_rescue_points.signatures))\n")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
                           cwd=str(__import__("pathlib").Path(__file__).resolve().parents[1]))
-    assert "COMPLETED True RESCUE 0" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]
+    assert "COMPLETED True True RESCUE 0 0" in done.stdout, done.stdout[-2000:] + done.stderr[-2000:]

@@ -191,8 +191,8 @@ def rescued_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_ol
     return from a bracketed guess or by continuation (:mod:`rockfrac.laws.cohesive_rescue`): the EP
     form's (du a jump increment). A separate entry so that only a run that needs it compiles it (the
     element kernels call it for their failed points: :func:`rockfrac.laws.mohr_coulomb_surface.
-    ep_rescue_points`). The RP form's augmented trials of a diverging global iterate are not rescued:
-    they fail, which cuts the step."""
+    ep_rescue_points`), and the RP form's too, its trial lambda + r h with K^e = r I
+    (:func:`~rockfrac.laws.mohr_coulomb_surface.rp_rescue_points`)."""
     st = return_step(du_t, du_n, t_old_t, t_old_n, t_s_t, t_s_n, start, ct, cn, s_old, p, s_new, D, wk)
     if st >= 0:
         return st

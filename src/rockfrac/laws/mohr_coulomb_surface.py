@@ -116,11 +116,37 @@ def ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke
 
 
 @inner
+def _rp_return_start(r, lam_i, s_old_i, p):
+    """The return's T_old := lambda (local frame) [Pa] and the work rule's start: the flow starts at
+    the committed traction of a committed plastic point, or of a constrained one already on its
+    yield surface (a step that starts at the activation); from inside, the rigid traction's path to
+    the surface is not defined and the onset step is backward Euler."""
+    lam_t = r[0, 0] * lam_i[0] + r[0, 1] * lam_i[1]
+    lam_n = r[1, 0] * lam_i[0] + r[1, 1] * lam_i[1]
+    on_surface = (s_old_i[S_MODE] == MODE_PLASTIC
+                  or _law.yield_function(s_old_i[S_TT], s_old_i[S_TN], s_old_i[S_EPSN], s_old_i[S_EPSS], p)
+                  >= -_law.elastic_tolerance(p))
+    return lam_t, lam_n, START_GIVEN if on_surface else START_NONE
+
+
+@inner
+def _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched):
+    """Point i's switch flag and element blocks from its updated state."""
+    r = frame[i]
+    switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
+    fi = fe[i]
+    ki = ke[i]
+    pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
+    multiplier_rows(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], lam[i], aug, fi, ki)
+    if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
+        junction_rows(r, weight[i], eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
+
+
+@inner
 def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new, fe, ke,
               status, switched, wk):
     """Point i of :func:`rp_points`."""
     r = frame[i]
-    w = weight[i]
     h_t, h_n = local_jump(r, djump[i])
     if h_t == 0.0 and h_n == 0.0 and s_old[i, S_MODE] == MODE_PLASTIC and not pinned[i]:
         keep_committed(s_old[i], d_old[i], s_new[i], d_new[i], S_DGAMMA)
@@ -129,27 +155,12 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         hold_constrained(s_old[i], s_new[i], d_new[i], r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1] + aug * h_t,
                          r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1] + aug * h_n, aug, S_DGAMMA, S_MODE)
         status[i] = 0
-    else:
-        lam_t = r[0, 0] * lam[i, 0] + r[0, 1] * lam[i, 1]  # T_old := lambda (local frame)
-        lam_n = r[1, 0] * lam[i, 0] + r[1, 1] * lam[i, 1]
+    else:  # trial lambda + r h: elastic, or the return
+        lam_t, lam_n, start = _rp_return_start(r, lam[i], s_old[i], p)
         comp = 1.0 / aug
-        # trial lambda + r h: elastic, or the return; the work rule's flow starts at the committed
-        # traction of a committed plastic point, or of a constrained one already on its yield surface
-        # (a step that starts at the activation); from inside, the rigid traction's path to the
-        # surface is not defined and the onset step is backward Euler
-        on_surface = (s_old[i, S_MODE] == MODE_PLASTIC
-                      or _law.yield_function(s_old[i, S_TT], s_old[i, S_TN], s_old[i, S_EPSN], s_old[i, S_EPSS], p)
-                      >= -_law.elastic_tolerance(p))
-        start = START_GIVEN if on_surface else START_NONE
         status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
                                 s_old[i], p, s_new[i], d_new[i], wk)
-    switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
-    fi = fe[i]
-    ki = ke[i]
-    pair_blocks_local(r, w, s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
-    multiplier_rows(r, w, s_new[i, S_TT], s_new[i, S_TN], lam[i], aug, fi, ki)
-    if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
-        junction_rows(r, w, eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
+    _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched)
 
 
 @parallel_kernel(cost=1.4e-6)  # s per item, one thread (benchmarks/thread_rule.py)
@@ -176,6 +187,22 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
             _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, p, s_new, d_new,
                       fe, ke, status, switched, wk)
+
+
+@kernel
+def rp_rescue_points(index, frame, weight, djump, lam, aug, eps, s_old, mode_prev, p, s_new, d_new, fe, ke, status,
+                     switched):
+    """The points ``index`` of :func:`rp_points` whose return failed, again with the rescued return
+    (:func:`rockfrac.laws.cohesive.rescued_step`, K^e = r I): compiled only when a run first needs it."""
+    wk = workspace()
+    comp = 1.0 / aug
+    for i in index:
+        r = frame[i]
+        h_t, h_n = local_jump(r, djump[i])
+        lam_t, lam_n, start = _rp_return_start(r, lam[i], s_old[i], p)
+        status[i] = rescued_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
+                                 s_old[i], p, s_new[i], d_new[i], wk)
+        _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched)
 
 
 @kernel
@@ -211,6 +238,7 @@ class MohrCoulombSurface(TractionLaw):
     tensile_record = "chi"  # the tensile strength: F = 0 at T_t = 0, T_n = chi (eq. 18)
     ep_kernel = ep_points
     rescue_kernel = ep_rescue_points
+    rp_rescue_kernel = rp_rescue_points
     rp_kernel = rp_points
     trial_kernel = trial_return
 
@@ -254,4 +282,4 @@ class MohrCoulombSurface(TractionLaw):
 
 
 __all__ = ["MohrCoulombParameters", "MohrCoulombSurface", "WorkRule", "ep_points", "ep_update", "rp_points",
-           "trial_return"]
+           "rp_rescue_points", "trial_return"]

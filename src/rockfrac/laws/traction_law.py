@@ -22,6 +22,8 @@ parameter vector p):
 - ``ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new, fe, ke, status)``
   (``rescue_kernel``, optional): the points of ``ep_points`` whose return failed, solved another way
   (called only where one failed, so compiled only by a run that needs it);
+- ``rp_rescue_points(index, frame, weight, djump, lam, aug, eps, s_old, mode_prev, p, s_new, d_new,
+  fe, ke, status, switched)`` (``rp_rescue_kernel``, optional): the same for ``rp_points``;
 - ``point_update(du, s_old, p, s_new, D)``: one EP update of one point (the material-point driver);
 - ``trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) -> status`` (``trial_kernel``): the return
   from the trial traction (tr_t, tr_n) [Pa] with K = diag(1/ct, 1/cn), T_old = s_old's traction,
@@ -89,6 +91,8 @@ class TractionLaw(ABC):
     rescue_kernel: ClassVar[Any] = None  # ep_rescue_points(index, frame, weight, djump, s_old, p, s_new, d_new,
     # fe, ke, status): the EP points whose return failed, solved another way (None: the law has none)
     rp_kernel: ClassVar[Any]  # the compiled rp_points(..., p, ...)
+    rp_rescue_kernel: ClassVar[Any] = None  # rp_rescue_points(index, ..., p, ...): the RP points whose return
+    # failed, solved another way (None: the law has none)
     trial_kernel: ClassVar[Any]  # the compiled trial_return(tr_t, tr_n, ct, cn, s_old, p, s_new, D) (3D)
 
     def __init__(self, params: Any, kn: float | None = None, kt: float | None = None):
@@ -127,6 +131,10 @@ class TractionLaw(ABC):
         """The RP form at every point (see the module docstring), with this law's parameters."""
         type(self).rp_kernel(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_prev, self.p, s_new,
                              d_new, fe, ke, status, switched)
+        rescue = type(self).rp_rescue_kernel
+        if rescue is not None and status.min(initial=0) < 0:  # compiled when a run first needs it
+            rescue(np.flatnonzero(status < 0), frame, weight, djump, lam, aug, eps, s_old, mode_prev, self.p, s_new,
+                   d_new, fe, ke, status, switched)
 
     @abstractmethod
     def drive(self, jumps: np.ndarray) -> dict[str, np.ndarray]:

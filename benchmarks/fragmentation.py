@@ -11,7 +11,8 @@ with ``[solver] fallback = "implex"`` (IMPL-EX once an implicit step fails at mi
 under load control with the viscous regularisation ``[cohesive] viscosity`` instead (the energy a
 snap-back releases goes to D_viscous, reported); RP has no IMPL-EX fallback (its multipliers have no
 elastic jump to extrapolate) but runs under load control with the same viscosity too, its
-augmentation the EP's penalty (variant "rp viscous"). Reports per run: internal edges
+augmentation the EP's penalty (variant "rp viscous"; ``--augmentation R``: another r, the same viscosity,
+which is the Duvaut-Lions relaxation time whatever the stiffness). Reports per run: internal edges
 (interface points), steps, Newton iterations per step, the step where IMPL-EX took over, wall time,
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
@@ -83,8 +84,9 @@ def grains_case(size: float, runs: Path) -> dict:
 
 def run_key(rec: dict) -> str:
     """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
-    stop = rec.get("stop_fraction", 0.5)
-    return f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
+    stop, aug = rec.get("stop_fraction", 0.5), rec.get("augmentation")
+    return (f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
+            + (f" r {aug:g}" if aug else ""))
 
 
 def solver_label(rec: dict) -> str:
@@ -120,6 +122,9 @@ def main() -> None:
                     help="the loading's displacement [m] (disc 1e-4 at each platen, grains 1e-3 at the top)")
     ap.add_argument("--stop-fraction", type=float, default=0.5,
                     help="stop once the load falls below this fraction of its peak (0.5)")
+    ap.add_argument("--augmentation", type=float, default=None,
+                    help="RP's augmentation r [Pa/m] (default: the EP's penalty; the grains' friction softens "
+                         "faster than it, about 1e14 Pa/m)")
     ap.add_argument("--checkpoint-every", type=int, default=0,
                     help="save a checkpoint every n converged steps (0: never), for --resume")
     ap.add_argument("--note", default=None,
@@ -170,19 +175,21 @@ def main() -> None:
                 loaded["y"] = -args.displacement
             stage["max_steps"] = 40 * steps
             stage["stop"]["below_peak_fraction"] = args.stop_fraction
+            aug = args.augmentation if form == "rp" else None
             for coh in sections:
                 coh["form"] = form
                 if form == "rp":
-                    coh["augmentation"] = coh.pop("kn")
+                    coh["augmentation"] = aug or coh.pop("kn")
+                    coh.pop("kn", None)
                     coh.pop("kt")
                 if variant.endswith("viscous"):  # load control; the overstress ~ eta kn dJ/dt stays small
-                    coh["viscosity"] = visc  # (RP: eta r dJ/dt, the augmentation r = the EP's kn)
+                    coh["viscosity"] = visc  # a relaxation time: plastic jump rate = overstress / (eta kn), RP: / (eta r)
             if variant.endswith("viscous"):
                 stage["control"] = "load"
                 stage.pop("max_steps")
             elif form == "ep":
                 d["solver"] = {"fallback": "implex"}
-            out = runs / f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}"
+            out = runs / (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else ""))
             resume = args.resume and (out / checkpoint.FILE).exists()
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
@@ -216,6 +223,7 @@ def main() -> None:
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
                    "viscosity": visc if variant.endswith("viscous") else None,
+                   "augmentation": aug,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -235,6 +243,7 @@ def main() -> None:
         v = rec["variant"]
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
         label = v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control"
+        label += f", r = {rec['augmentation']:g} Pa/m" if rec.get("augmentation") else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

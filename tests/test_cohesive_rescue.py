@@ -198,6 +198,7 @@ def test_the_element_kernel_rescues_its_failed_points_only():
                                rtol=1e-14, atol=1e-300)
 
 
+# all but the second, whose RP return converges without the rescue
 @pytest.mark.parametrize("case", [c for j, c in enumerate(FAILED_BEFORE) if j != 1])
 def test_the_rp_kernel_rescues_its_failed_points_to_the_ep_return_with_k_equal_to_r(case):
     """MohrCoulombSurface.rp_points at a constrained point with lambda = 0 and the augmented trial

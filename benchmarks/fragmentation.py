@@ -179,9 +179,9 @@ def main() -> None:
             for coh in sections:
                 coh["form"] = form
                 if form == "rp":
-                    coh["augmentation"] = aug or coh.pop("kn")
-                    coh.pop("kn", None)
+                    kn = coh.pop("kn")
                     coh.pop("kt")
+                    coh["augmentation"] = aug or kn
                 if variant.endswith("viscous"):  # load control; the overstress ~ eta kn dJ/dt stays small
                     coh["viscosity"] = visc  # a relaxation time: plastic jump rate = overstress / (eta kn), RP: / (eta r)
             if variant.endswith("viscous"):

@@ -99,8 +99,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     points sit at a junction, found on the whole mesh; None: found on ``mesh``).
 
     RP at junctions (a node split into k >= 3 copies): the multipliers of the pairs around it are
-    statically indeterminate (circulating forces); they are taken with the least circulation, see
-    :class:`rockfrac.elements.cse_groups.CohesiveRP`.
+    statically indeterminate (circulating forces); they are taken with the least circulation from a
+    reference traction, see :class:`rockfrac.elements.cse_groups.CohesiveRP`.
     """
     planar = law_of_section(section)
     law: TractionLaw | Law3D = planar

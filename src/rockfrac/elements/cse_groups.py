@@ -369,9 +369,14 @@ class CohesiveRP(_CohesiveGroup):
     Junctions: around a node split into k >= 3 copies the pairs' jumps sum to zero, so their
     multipliers are statically indeterminate (forces may circulate round the node: a singular
     system). At such pairs, while constrained, the multiplier row gets a perturbed-Lagrangian term
-    JUNCTION_EPS w (lambda - lambda_n): the circulating part takes its least value (for a uniform
-    stress that is exactly w sigma . n, the physical traction: the normals round a node sum to
-    zero) at a constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m.
+    JUNCTION_EPS w (lambda - lambda_ref): the circulating part takes the value nearest lambda_ref, at a
+    constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m. lambda_ref is the committed traction
+    (for a uniform stress the circulation is then exactly w sigma . n, the physical traction: the
+    normals round a node sum to zero), until an iterate of the step finds the pair plastic: from then
+    on it is the traction that iterate returned to the surface. (Until 2026-11-29 it stayed the
+    committed traction: a pair that the circulation had put on its surface was pulled back inside
+    when held shut, and then pushed out again; the grains' junction pairs flipped so at every
+    iteration. benchmarks/README.md, "A grain-matrix specimen in compression".)
 
     viscosity eta > 0 [pseudo-time, one load-controlled stage = 1]: the augmented return regularised
     by :mod:`rockfrac.laws.viscous` (Duvaut-Lions with K = r I: the plastic jump's rate is the
@@ -392,6 +397,7 @@ class CohesiveRP(_CohesiveGroup):
         self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step
         self._pinned = np.zeros(points.n, dtype=bool)
         self._released = np.zeros(points.n, dtype=bool)  # pinned once and let go in this step
+        self._lam_ref = np.zeros((points.n, self.dim))  # junction pairs' reference multipliers (global) [Pa]
         self.n_extra = self.dim * points.n
         self.offset = -1
         self.lam_dofs = np.zeros((0, self.dim), dtype=np.int64)  # each point's multiplier dofs (n_pts, dim)
@@ -399,6 +405,7 @@ class CohesiveRP(_CohesiveGroup):
 
     def begin_step(self) -> None:
         super().begin_step()
+        self._lam_ref = self.points.from_local(self.state[:, self._t])
         self._flips[:] = 0
         self._pinned[:] = False
         self._released[:] = False
@@ -444,6 +451,17 @@ class CohesiveRP(_CohesiveGroup):
         multipliers' (the jumps stay zero)."""
         return self.points.local(self.multipliers(u + du) - self.multipliers(u))
 
+    def _junction_residual(self, lam: np.ndarray, fe: np.ndarray) -> None:
+        """Add the perturbed-Lagrangian term -JUNCTION_EPS w (lambda - lambda_ref) to the multiplier rows
+        of the constrained junction pairs (global frame; its matrix term is the kernels'), then take the
+        tractions of this iterate's plastic junction pairs as their lambda_ref."""
+        d = self.dim
+        plastic = self.trial[:, self.mode] == MODE_PLASTIC
+        held = (self.eps > 0.0) & ~plastic
+        fe[held, 2 * d:] -= (self.eps * self.points.weight)[held, None] * (lam[held] - self._lam_ref[held])
+        moved = (self.eps > 0.0) & plastic
+        self._lam_ref[moved] = np.einsum("pji,pj->pi", self.points.frame[moved], self.trial[moved][:, self._t])
+
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         pts = self.points
         djump = self.jumps(u) - self.jumps(u_n)
@@ -460,6 +478,7 @@ class CohesiveRP(_CohesiveGroup):
             duvaut_lions_rp_points(pts.frame, pts.weight, djump, lam, self.aug, self.eps, committed, self.trial,
                                    self.trial_tangent, self.blend(), np.int64(self.law.dgamma_slot),
                                    np.int64(self.mode), self._t_bar, fe, ke)
+        self._junction_residual(lam, fe)
         # active-set pinning: a point chattering between constrained and plastic (on its yield
         # surface, dgamma ~ 0) is held constrained for the rest of the step; it is consistent there
         # only if its traction is inside the surface, else it is released (once per step)

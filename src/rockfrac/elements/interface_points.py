@@ -85,6 +85,10 @@ class InterfacePoints:
         """Rotate global vectors (n_pts, dim) into the local frames."""
         return np.einsum("pij,pj->pi", self.frame, v)
 
+    def from_local(self, v: np.ndarray) -> np.ndarray:
+        """Rotate local vectors (n_pts, dim) into the global frame."""
+        return np.einsum("pji,pj->pi", self.frame, v)
+
     def subset(self, keep: np.ndarray) -> InterfacePoints:
         """The points where ``keep`` (a mask) holds, with the weights and frames they have among all
         (one MPI rank's share of a surface); the cells keep the kept points' pairs (-1 elsewhere),

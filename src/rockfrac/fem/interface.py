@@ -58,13 +58,12 @@ def multiplier_rows(r, w, t_t, t_n, lam, aug, fi, ki):
 
 
 @inner
-def junction_rows(r, w, eps, lam, t_old_t, t_old_n, fi, ki):
-    """Least circulation of a constrained junction pair's multipliers: the perturbed-Lagrangian term
-    eps w (lambda - lambda_n) with lambda_n = R^T T_old (see rockfrac.elements.cse_groups.CohesiveRP)."""
-    for a in range(2):
-        lam_n = r[0, a] * t_old_t + r[1, a] * t_old_n
-        fi[4 + a] -= eps * w * (lam[a] - lam_n)
-        ki[4 + a, 4 + a] -= eps * w
+def junction_rows(w, eps, ki, dim):
+    """The matrix term -eps w of a constrained junction pair's perturbed-Lagrangian multiplier rows (its
+    residual term is added by rockfrac.elements.cse_groups.CohesiveRP, which keeps the reference
+    tractions). dim: 2 or 3 (the multiplier rows follow the 2 dim displacement dofs)."""
+    for a in range(dim):
+        ki[2 * dim + a, 2 * dim + a] -= eps * w
 
 
 @inner
@@ -102,7 +101,7 @@ def pair_blocks_3d(r, w, s, d, fe, ke):
 
 
 @inner
-def multiplier_rows_3d(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
+def multiplier_rows_3d(r, w, s, lam, aug, eps, junction, fi, ki):
     """The multiplier rows and columns of a rigid-plastic pair (dofs 6-8: lambda xyz, global [Pa]), after
     :func:`pair_blocks_3d`: :func:`multiplier_rows` and, where ``junction``, :func:`junction_rows` in 3D."""
     for a in range(3):
@@ -116,7 +115,4 @@ def multiplier_rows_3d(r, w, s, lam, aug, eps, t_old, junction, fi, ki):
             ki[6 + a, 3 + b] = kab
             ki[6 + a, 6 + b] = kab / aug - (w if a == b else 0.0)
     if junction:
-        for a in range(3):
-            lam_n = r[0, a] * t_old[0] + r[1, a] * t_old[1] + r[2, a] * t_old[2]
-            fi[6 + a] -= eps * w * (lam[a] - lam_n)
-            ki[6 + a, 6 + a] -= eps * w
+        junction_rows(w, eps, ki, 3)

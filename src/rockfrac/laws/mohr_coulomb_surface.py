@@ -130,7 +130,7 @@ def _rp_return_start(r, lam_i, s_old_i, p):
 
 
 @inner
-def _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched):
+def _rp_blocks(i, frame, weight, lam, aug, eps, mode_prev, s_new, d_new, fe, ke, switched):
     """Point i's switch flag and element blocks from its updated state."""
     r = frame[i]
     switched[i] = 1 if s_new[i, S_MODE] != mode_prev[i] else 0
@@ -139,7 +139,7 @@ def _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, 
     pair_blocks_local(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], d_new[i], fi, ki)
     multiplier_rows(r, weight[i], s_new[i, S_TT], s_new[i, S_TN], lam[i], aug, fi, ki)
     if eps[i] > 0.0 and s_new[i, S_MODE] != MODE_PLASTIC:
-        junction_rows(r, weight[i], eps[i], lam[i], s_old[i, S_TT], s_old[i, S_TN], fi, ki)
+        junction_rows(weight[i], eps[i], ki, 2)
 
 
 @inner
@@ -160,7 +160,7 @@ def _rp_point(i, frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
         comp = 1.0 / aug
         status[i] = return_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
                                 s_old[i], p, s_new[i], d_new[i], wk)
-    _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched)
+    _rp_blocks(i, frame, weight, lam, aug, eps, mode_prev, s_new, d_new, fe, ke, switched)
 
 
 @parallel_kernel(cost=1.4e-6)  # s per item, one thread (benchmarks/thread_rule.py)
@@ -177,7 +177,8 @@ def rp_points(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode_pr
     [[u]]_{n+1} - [[u]]_n = Delta[[u^p]] exactly at convergence, where T = lambda: the converged
     state solves eq. (34) and the surface is rigid until F(lambda) = 0.
     mode_prev: mode of each point in the previous iterate (a change counts as a switch). eps (n,):
-    perturbed-Lagrangian weight of constrained junction pairs (0 elsewhere), see CohesiveRP.
+    perturbed-Lagrangian weight of constrained junction pairs (0 elsewhere; the kernel writes its matrix
+    term only), see CohesiveRP.
     pinned (n,): held constrained in this iteration whatever their trial (active-set pinning, see
     CohesiveRP).
     """
@@ -202,7 +203,7 @@ def rp_rescue_points(index, frame, weight, djump, lam, aug, eps, s_old, mode_pre
         lam_t, lam_n, start = _rp_return_start(r, lam[i], s_old[i], p)
         status[i] = rescued_step(h_t, h_n, lam_t, lam_n, s_old[i, S_TT], s_old[i, S_TN], start, comp, comp,
                                  s_old[i], p, s_new[i], d_new[i], wk)
-        _rp_blocks(i, frame, weight, lam, aug, eps, s_old, mode_prev, s_new, d_new, fe, ke, switched)
+        _rp_blocks(i, frame, weight, lam, aug, eps, mode_prev, s_new, d_new, fe, ke, switched)
 
 
 @kernel

@@ -194,8 +194,8 @@ def rp_points_3d(frame, weight, djump, lam, aug, eps, pinned, s_old, d_old, mode
                                       p, sn, dn, s2o, s2n, d2)
             switched[i] = 1 if sn[mode_slot] != mode_prev[i] else 0
             pair_blocks_3d(r, weight[i], sn, dn, fe[i], ke[i])
-            multiplier_rows_3d(r, weight[i], sn, lam[i], aug, eps[i], so, eps[i] > 0.0 and sn[mode_slot] != MODE_PLASTIC,
-                     fe[i], ke[i])
+            multiplier_rows_3d(r, weight[i], sn, lam[i], aug, eps[i], eps[i] > 0.0 and sn[mode_slot] != MODE_PLASTIC,
+                               fe[i], ke[i])
 
 
 def ep_form_3d(law: TractionLaw, frame, weight, djump, s_old, d_old, s_new, d_new, fe, ke, status) -> None:

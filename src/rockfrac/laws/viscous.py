@@ -135,7 +135,7 @@ def duvaut_lions_rp_points(frame, weight, djump, lam, aug, eps, s_old, s_new, d_
                 pair_blocks_local(r, weight[i], s_new[i, 0], s_new[i, 1], d, fe[i], ke[i])
                 multiplier_rows(r, weight[i], s_new[i, 0], s_new[i, 1], lam[i], aug, fe[i], ke[i])
                 if junction:
-                    junction_rows(r, weight[i], eps[i], lam[i], s_old[i, 0], s_old[i, 1], fe[i], ke[i])
+                    junction_rows(weight[i], eps[i], ke[i], 2)
             else:
                 pair_blocks_3d(r, weight[i], s_new[i], d, fe[i], ke[i])
-                multiplier_rows_3d(r, weight[i], s_new[i], lam[i], aug, eps[i], s_old[i], junction, fe[i], ke[i])
+                multiplier_rows_3d(r, weight[i], s_new[i], lam[i], aug, eps[i], junction, fe[i], ke[i])

@@ -373,10 +373,10 @@ class CohesiveRP(_CohesiveGroup):
     constraint violation of JUNCTION_EPS dlambda / r, ~1e-13 m. lambda_ref is the committed traction
     (for a uniform stress the circulation is then exactly w sigma . n, the physical traction: the
     normals round a node sum to zero), until an iterate of the step finds the pair plastic: from then
-    on it is the traction that iterate returned to the surface. (Until 2026-11-29 it stayed the
-    committed traction: a pair that the circulation had put on its surface was pulled back inside
-    when held shut, and then pushed out again; the grains' junction pairs flipped so at every
-    iteration. benchmarks/README.md, "A grain-matrix specimen in compression".)
+    on it is that iterate's traction (on the surface; with viscosity, the relaxed one). Until
+    2026-11-29 it stayed the committed traction: a pair that the circulation had put on its surface
+    was pulled back inside when held shut, and then pushed out again; the grains' junction pairs
+    flipped so at every iteration (benchmarks/README.md, "A grain-matrix specimen in compression").
 
     viscosity eta > 0 [pseudo-time, one load-controlled stage = 1]: the augmented return regularised
     by :mod:`rockfrac.laws.viscous` (Duvaut-Lions with K = r I: the plastic jump's rate is the

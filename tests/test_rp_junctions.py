@@ -25,6 +25,11 @@ def test_a_held_junction_pair_is_drawn_to_its_committed_traction_then_to_its_las
     that iterate returned to its surface, the committed one again at the next step."""
     law = MohrCoulombSurface(MohrCoulombParameters(**LAW))
     frame = frames(np.array([0.3, 1.2, 2.5]))
+
+    def rot(i, t):
+        """Point i's local vector t in the global frame, R_i^T t."""
+        return frame[i].T @ t
+
     w = np.array([0.5, 0.7, 0.9])
     pts = InterfacePoints(minus=np.arange(3), plus=np.arange(3, 6), weight=w, frame=frame, x=np.zeros((3, 2)),
                           cell=np.arange(3))
@@ -33,7 +38,6 @@ def test_a_held_junction_pair_is_drawn_to_its_committed_traction_then_to_its_las
     t0 = np.array([[100.0, -2000.0], [-300.0, -1000.0], [50.0, -500.0]])  # committed, inside the surface
     g.state[:, :2] = t0
     g.begin_step()
-    rot = lambda i, t: frame[i].T @ t  # local -> global
     lam_l = np.array([[400.0, -1500.0], [200.0, -800.0], [-100.0, -300.0]])  # inside too
     u = np.zeros(18)
     u[g.lam_dofs] = np.array([rot(i, lam_l[i]) for i in range(3)])

@@ -394,6 +394,7 @@ class CohesiveRP(_CohesiveGroup):
             self.checkpoint_attrs = type(self).checkpoint_attrs + ("viscous_dissipated", "overstress")
         self.aug = float(augmentation)
         self.eps = np.where(junction, self.JUNCTION_EPS, 0.0) if junction is not None else np.zeros(points.n)
+        self._at_junction = self.eps > 0.0
         self._flips = np.zeros(points.n, dtype=np.int64)  # switches in the current step
         self._pinned = np.zeros(points.n, dtype=bool)
         self._released = np.zeros(points.n, dtype=bool)  # pinned once and let go in this step
@@ -455,11 +456,13 @@ class CohesiveRP(_CohesiveGroup):
         """Add the perturbed-Lagrangian term -JUNCTION_EPS w (lambda - lambda_ref) to the multiplier rows
         of the constrained junction pairs (global frame; its matrix term is the kernels'), then take the
         tractions of this iterate's plastic junction pairs as their lambda_ref."""
+        if not self._at_junction.any():
+            return
         d = self.dim
         plastic = self.trial[:, self.mode] == MODE_PLASTIC
-        held = (self.eps > 0.0) & ~plastic
+        held = self._at_junction & ~plastic
         fe[held, 2 * d:] -= (self.eps * self.points.weight)[held, None] * (lam[held] - self._lam_ref[held])
-        moved = (self.eps > 0.0) & plastic
+        moved = self._at_junction & plastic
         self._lam_ref[moved] = np.einsum("pji,pj->pi", self.points.frame[moved], self.trial[moved][:, self._t])
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:

@@ -9,7 +9,7 @@ import scipy.sparse.linalg as spla
 from test_linear_solvers import rp_case, tangents
 
 from rockfrac.solve import linear
-from rockfrac.solve.fallback import ACCURACY, Checked, relative_residual
+from rockfrac.solve.fallback import ACCURACY, REFINE_STEPS, Checked, relative_residual
 
 needs_pardiso = pytest.mark.skipif("pardiso" not in linear.available(), reason="PARDISO (pypardiso) not installed")
 
@@ -90,6 +90,37 @@ def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over
     notes = solver.notes()
     assert len(notes) == 2 and "1 of 1 solves by perturbed left relative residuals above 1e-06" in notes[0]
     assert "solved from then on" in notes[1]
+
+
+def test_a_slightly_inaccurate_solve_is_refined_with_the_first_backends_factors(saddle):
+    """Factors of a slightly perturbed matrix (1e-13 max|A| on every pivot: the first solution is off by
+    about 3e-3) converge under iterative refinement: the solution meets the accuracy without the
+    other backend, which is never asked, and the first one keeps solving."""
+    b = np.random.default_rng(4).standard_normal(saddle.shape[0])
+    first, then = Perturbed(1e-13), Counting()
+    plain = first.factorize(saddle).solve(b)
+    assert relative_residual(saddle, plain, b) > 1e3 * ACCURACY
+    solver = Checked(first, then)
+    x = solver.factorize(saddle).solve(b)
+    assert then.factorizations == 0 and not solver.handed_over
+    assert relative_residual(saddle, x, b) <= ACCURACY
+    exact = spla.splu(saddle.tocsc()).solve(b)
+    assert np.abs(x - exact).max() <= 1e-5 * np.abs(exact).max()
+    assert solver.off == 1 and solver.refined == 1 and 1 < solver.refine_steps <= REFINE_STEPS
+    solver.factorize(saddle).solve(2 * b)  # and again: still the first backend's
+    assert first.factorizations == 3 and then.factorizations == 0 and solver.refined == 2
+    notes = solver.notes()
+    assert "2 of 2 solves by perturbed" in notes[0] and "2 of them met it after iterative refinement" in notes[1]
+
+
+def test_refinement_that_does_not_contract_is_abandoned(saddle):
+    """Factors too far off (1e-9 max|A| on every pivot of the saddle point) do not contract under
+    refinement: the first correction is rejected, and the other backend solves as before."""
+    b = np.random.default_rng(5).standard_normal(saddle.shape[0])
+    solver = Checked(Perturbed(1e-9), Counting())
+    x = solver.factorize(saddle).solve(b)
+    assert solver.refined == 0 and solver.refine_steps == 0 and solver.handed_over
+    assert relative_residual(saddle, x, b) < 1e-12
 
 
 def test_an_accurate_solve_is_the_first_backends_own(saddle):

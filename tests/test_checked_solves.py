@@ -1,5 +1,5 @@
 """Checked solves: a backend's solution is checked against its equations, and an inaccurate one is
-solved again by another backend, which takes over for the rest of the run where it is accurate
+solved again by another backend, which takes over for the rest of the run at the third matrix where it is accurate
 (PARDISO's static pivoting on RP saddle points, benchmarks/README.md "Fragmentation")."""
 
 import numpy as np
@@ -9,7 +9,7 @@ import scipy.sparse.linalg as spla
 from test_linear_solvers import rp_case, tangents
 
 from rockfrac.solve import linear
-from rockfrac.solve.fallback import ACCURACY, REFINE_STEPS, Checked, relative_residual
+from rockfrac.solve.fallback import ACCURACY, HAND_OVER_AFTER, REFINE_STEPS, Checked, relative_residual
 
 needs_pardiso = pytest.mark.skipif("pardiso" not in linear.available(), reason="PARDISO (pypardiso) not installed")
 
@@ -67,7 +67,7 @@ def test_relative_residual():
     assert relative_residual(a, np.column_stack([[1.0, 1.0], [2.0, 2.0]]), two) == 0.0
 
 
-def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over(saddle):
+def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over_at_the_third(saddle):
     rng = np.random.default_rng(0)
     first, then = Perturbed(1e-9), Counting()
     solver = Checked(first, then)
@@ -77,18 +77,24 @@ def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over
     exact = spla.splu(saddle.tocsc()).solve(b)
     assert relative_residual(saddle, first.factorize(saddle).solve(b), b) > 1e3 * ACCURACY  # really off
     first.factorizations = 0
-    factor = solver.factorize(saddle)
-    assert first.factorizations == 1 and then.factorizations == 0 and not solver.handed_over
-    x = factor.solve(b)
-    assert then.factorizations == 1 and relative_residual(saddle, x, b) < 1e-12
-    assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
-    assert "perturbed's solution of a" in solver.handed_over and "counting solved from then on" in solver.handed_over
-    y = factor.solve(2 * b)  # the same factor's next solve: the accurate factors, not checked again
-    assert then.factorizations == 1 and solver.solves == 1 and np.abs(y - 2 * x).max() <= 1e-12 * np.abs(x).max()
+    for k in range(1, HAND_OVER_AFTER):  # then's factors of this matrix only; the first backend kept
+        factor = solver.factorize(saddle)
+        assert first.factorizations == k and then.factorizations == k - 1 and not solver.handed_over
+        x = factor.solve(b)
+        assert then.factorizations == k and relative_residual(saddle, x, b) < 1e-12
+        assert np.abs(x - exact).max() <= 1e-10 * np.abs(exact).max()
+        y = factor.solve(2 * b)  # the same factor's next solve: then's factors, not checked again
+        assert then.factorizations == k and solver.solves == k and np.abs(y - 2 * x).max() <= 1e-12 * np.abs(x).max()
+        assert not solver.handed_over and solver.retried == k
+    assert "counting solved 2 of them again, accurately" in solver.notes()[1]
+    x = solver.factorize(saddle).solve(b)  # the third: then takes over
+    assert first.factorizations == HAND_OVER_AFTER == then.factorizations and relative_residual(saddle, x, b) < 1e-12
+    assert "perturbed's solution of a" in solver.handed_over and "the 3rd such system" in solver.handed_over
+    assert "counting solved from then on" in solver.handed_over
     solver.factorize(saddle).solve(b)  # from then on the first backend is not asked
-    assert first.factorizations == 1 and then.factorizations == 2
+    assert first.factorizations == HAND_OVER_AFTER and then.factorizations == HAND_OVER_AFTER + 1
     notes = solver.notes()
-    assert len(notes) == 2 and "1 of 1 solves by perturbed left relative residuals above 1e-06" in notes[0]
+    assert len(notes) == 2 and "3 of 3 solves by perturbed left relative residuals above 1e-06" in notes[0]
     assert "solved from then on" in notes[1]
 
 
@@ -119,7 +125,7 @@ def test_refinement_that_does_not_contract_is_abandoned(saddle):
     b = np.random.default_rng(5).standard_normal(saddle.shape[0])
     solver = Checked(Perturbed(1e-9), Counting())
     x = solver.factorize(saddle).solve(b)
-    assert solver.refined == 0 and solver.refine_steps == 0 and solver.handed_over
+    assert solver.refined == 0 and solver.refine_steps == 0 and solver.retried == 1
     assert relative_residual(saddle, x, b) < 1e-12
 
 

@@ -25,6 +25,13 @@ ACCURACY = 1e-6
 # perturbation is not small (the disc's RP, 1e-3 to 1) stops refining at the first step.
 REFINE_STEPS = 5
 
+# ``then`` takes over for the rest of the run at the third matrix whose solve ``first`` got wrong (and
+# refinement could not mend) where ``then``'s was accurate; the two before, ``then`` solves that matrix
+# only. PARDISO on the grains' RP saddle point was off beyond repair at one factorization in 36 (2e1,
+# after 3 others were refined within 1e-6); handing the run to SuperLU there made each later iteration
+# 3-4 times slower. On the disc's RP nearly every solve is off, and it hands over at once as before.
+HAND_OVER_AFTER = 3
+
 
 class Handover:
     """An iterative backend that hands over to a direct one, for the rest of the run, at its first
@@ -73,9 +80,10 @@ class Checked:
     """A direct backend whose every sparse solve is checked against its equations: a solution that
     leaves a relative residual above ``accuracy`` is refined with ``first``'s factors (at most
     REFINE_STEPS steps, each at least halving the residual) and, where that does not reach the
-    accuracy, solved again by ``then``. Where ``then``'s meets
-    the accuracy, ``then`` solves for the rest of the run (``first`` has failed on this problem's
-    matrices, e.g. PARDISO's static pivoting on RP saddle points); where it does not either, the
+    accuracy, solved again by ``then`` (its factors of that matrix). Once ``then``'s solution has met
+    the accuracy where ``first``'s did not at HAND_OVER_AFTER matrices, ``then`` solves for the rest of
+    the run (``first`` fails on this problem's matrices, e.g. PARDISO's static pivoting on RP saddle
+    points); where ``then``'s does not meet it either, the
     system is singular to working precision for that right-hand side (a mechanism under path
     control's load pattern) and the solution with the smaller residual is returned, ``first`` kept.
     With ``then = None`` solves are only counted. Dense (tiny) systems are not checked: every direct
@@ -85,6 +93,7 @@ class Checked:
         self.first, self.then, self.accuracy = first, then, accuracy
         self.name = first.name + (f", checked (then {then.name} where its solves are off)" if then else ", checked")
         self.handed_over = ""  # why ``then`` took over ("" while ``first`` solves)
+        self.retried = 0  # matrices whose solve ``then`` made accurate where ``first``'s was not
         self.solves = 0  # solves checked
         self.off = 0  # of them above ``accuracy``
         self.refined = 0  # of those, brought within ``accuracy`` by refinement with first's factors
@@ -105,6 +114,9 @@ class Checked:
         if self.refined:
             out.append(f"{self.refined} of them met it after iterative refinement with {self.first.name}'s factors "
                        f"({self.refine_steps} substitutions in all)")
+        if self.retried and not self.handed_over and self.then is not None:
+            out.append(f"{self.then.name} solved {self.retried} of them again, accurately, "
+                       f"with its factors of that matrix ({self.first.name} kept)")
         if self.handed_over:
             out.append(self.handed_over)
         return out + self.first.notes() + (self.then.notes() if self.then is not None else [])
@@ -154,10 +166,13 @@ class _CheckedFactor:
             return x
         res_then = relative_residual(self._a, y, b)
         if res_then <= owner.accuracy:
-            owner.handed_over = (f"{owner.first.name}'s solution of a {self._a.shape[0]}-row system left a relative "
-                                 f"residual of {res:.1e} where {owner.then.name}'s met {owner.accuracy:g} "
-                                 f"({res_then:.1e}); {owner.then.name} solved from then on")
-            self._factor, self._switched = self._retry, True
+            owner.retried += 1
+            if owner.retried >= HAND_OVER_AFTER:
+                owner.handed_over = (f"{owner.first.name}'s solution of a {self._a.shape[0]}-row system left a "
+                                     f"relative residual of {res:.1e} where {owner.then.name}'s met {owner.accuracy:g} "
+                                     f"({res_then:.1e}), the {_ordinal(owner.retried)} such system; "
+                                     f"{owner.then.name} solved from then on")
+            self._factor, self._switched = self._retry, True  # this matrix's other solves: then's factors
             return y
         return y if res_then < res else x
 
@@ -175,3 +190,8 @@ def _refined(factor: Factorization, a: sp.csr_matrix, b: np.ndarray, x: np.ndarr
             break
         x, res, steps = trial, res_trial, steps + 1
     return x, res, steps
+
+
+def _ordinal(n: int) -> str:
+    """1st, 2nd, 3rd, 4th..."""
+    return f"{n}" + ("th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th"))

@@ -1,4 +1,4 @@
-"""Newton stops as soon as its iterates cycle between two states (they would alternate to the
+"""Newton stops as soon as its iterates cycle through two to four states (they would go round to the
 iteration limit), and converges as before where they do not."""
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 from rockfrac.elements.base import ElementGroup, Evaluation
 from rockfrac.model import Model
 from rockfrac.solve.linear import make_solver
-from rockfrac.solve.newton import Loads, NewtonOptions, _cycling, newton_step
+from rockfrac.solve.newton import CYCLE_TOL, Loads, NewtonOptions, _cycle_period, _cycling, newton_step
 
 
 class Cubic(ElementGroup):
@@ -63,6 +63,20 @@ def test_the_cycle_test():
     assert not _cycling([1e-3, 9e-5, 1e-3, 8.8e-5, 1e-3])  # still moving
     assert not _cycling([1e-3, 1e-3, 1e-3, 1e-3, 1e-3])  # a stall, not a 2-cycle
     assert not _cycling([0.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def test_cycles_of_three_and_four_states():
+    """The grains' RP steps went round 3 iterates (3.818e-4, 2.630e-4, 7.167e-7) to the iteration limit:
+    a period of 3 or 4 is recognised after two periods and one more, to CYCLE_TOL, shortest first."""
+    three = [3.818e-4, 2.630e-4, 7.167e-7]
+    assert _cycle_period([5.0, 1.0] + three * 2 + three[:1]) == 3
+    assert _cycle_period(three * 2) == 0  # two periods are not yet enough
+    assert _cycle_period([1.0] + [v * (1 + 0.1 * CYCLE_TOL) for v in three] + three + three[:1]) == 3  # round-off
+    assert _cycle_period([v * (1 + 10 * CYCLE_TOL) for v in three] + three + three[:1]) == 0  # still moving
+    four = [1e-2, 3e-4, 2e-3, 5e-7]
+    assert _cycle_period(four * 2 + four[:1]) == 4
+    assert _cycle_period([1e-3, 8.8e-5] * 4 + [1e-3]) == 2  # a 2-cycle is also a 4-cycle: the shorter is named
+    assert _cycle_period([1e-3] * 9) == 0  # a stall
 
 
 def test_a_failure_says_when_the_active_set_does_not_settle():

@@ -12,7 +12,8 @@ under load control with the viscous regularisation ``[cohesive] viscosity`` inst
 snap-back releases goes to D_viscous, reported); RP has no IMPL-EX fallback (its multipliers have no
 elastic jump to extrapolate) but runs under load control with the same viscosity too, its
 augmentation the EP's penalty (variant "rp viscous"; ``--augmentation R``: another r, the same viscosity,
-which is the Duvaut-Lions relaxation time whatever the stiffness). Reports per run: internal edges
+which is the Duvaut-Lions relaxation time whatever the stiffness; ``--penalty K``: the EP's kn = kt instead of the
+case's). Reports per run: internal edges
 (interface points), steps, Newton iterations per step, the step where IMPL-EX took over, wall time,
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
@@ -84,9 +85,9 @@ def grains_case(size: float, runs: Path) -> dict:
 
 def run_key(rec: dict) -> str:
     """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
-    stop, aug = rec.get("stop_fraction", 0.5), rec.get("augmentation")
+    stop, aug, pen = rec.get("stop_fraction", 0.5), rec.get("augmentation"), rec.get("penalty")
     return (f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
-            + (f" r {aug:g}" if aug else ""))
+            + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else ""))
 
 
 def solver_label(rec: dict) -> str:
@@ -125,6 +126,8 @@ def main() -> None:
     ap.add_argument("--augmentation", type=float, default=None,
                     help="RP's augmentation r [Pa/m] (default: the EP's penalty; the grains' friction softens "
                          "faster than it, about 1e14 Pa/m)")
+    ap.add_argument("--penalty", type=float, default=None,
+                    help="EP's kn = kt [Pa/m] (default: the case's, 1e15 on the disc, 2e12 on the grains)")
     ap.add_argument("--checkpoint-every", type=int, default=0,
                     help="save a checkpoint every n converged steps (0: never), for --resume")
     ap.add_argument("--note", default=None,
@@ -176,8 +179,11 @@ def main() -> None:
             stage["max_steps"] = 40 * steps
             stage["stop"]["below_peak_fraction"] = args.stop_fraction
             aug = args.augmentation if form == "rp" else None
+            pen = args.penalty if form == "ep" else None
             for coh in sections:
                 coh["form"] = form
+                if pen:
+                    coh["kn"] = coh["kt"] = pen
                 if form == "rp":
                     kn = coh.pop("kn")
                     coh.pop("kt")
@@ -189,7 +195,8 @@ def main() -> None:
                 stage.pop("max_steps")
             elif form == "ep":
                 d["solver"] = {"fallback": "implex"}
-            out = runs / (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else ""))
+            out = runs / (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
+                          + (f"_kn{pen:g}" if pen else ""))
             resume = args.resume and (out / checkpoint.FILE).exists()
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
@@ -223,7 +230,7 @@ def main() -> None:
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
                    "viscosity": visc if variant.endswith("viscous") else None,
-                   "augmentation": aug,
+                   "augmentation": aug, "penalty": pen,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -244,6 +251,7 @@ def main() -> None:
         eta = rec.get("viscosity") or VISCOSITY[args.specimen]
         label = v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control"
         label += f", r = {rec['augmentation']:g} Pa/m" if rec.get("augmentation") else ""
+        label += f", kn = {rec['penalty']:g} Pa/m" if rec.get("penalty") else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

@@ -11,9 +11,9 @@ with ``[solver] fallback = "implex"`` (IMPL-EX once an implicit step fails at mi
 under load control with the viscous regularisation ``[cohesive] viscosity`` instead (the energy a
 snap-back releases goes to D_viscous, reported); RP has no IMPL-EX fallback (its multipliers have no
 elastic jump to extrapolate) but runs under load control with the same viscosity too, its
-augmentation the EP's penalty (variant "rp viscous"; ``--augmentation R``: another r, the same viscosity,
-which is the Duvaut-Lions relaxation time whatever the stiffness; ``--penalty K``: the EP's kn = kt instead of the
-case's). Reports per run: internal edges
+augmentation the EP's penalty (variant "rp viscous"; ``--augmentation R``: another r; ``--penalty K``: the
+EP's kn = kt instead of the case's; the viscosity, a Duvaut-Lions relaxation time eta, is then scaled by the
+case's kn over R or K, so that eta k, the viscous stress per jump rate, stays the case's EP's). Reports per run: internal edges
 (interface points), steps, Newton iterations per step, the step where IMPL-EX took over, wall time,
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
@@ -22,7 +22,9 @@ run followed a snap-back), and how the run ended. Writes ``results/fragmentation
 A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
 of an uninterrupted run; its wall time, the sum of its parts', counts the steps redone since the last
-checkpoint; each part is in the run folder's segments.json).
+checkpoint; each part is in the run folder's segments.json). The run folders (results/runs) are git-ignored and
+do not outlive a session's checkout: ``--bundle`` packs a stopped run's checkpoint, history and segments into
+results/resume/<run>.tar.xz, to be committed, and ``--resume`` unpacks it where the folder has no checkpoint.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import math
 import os
 import re
 import sys
+import tarfile
 import time
 import tomllib
 from pathlib import Path
@@ -83,6 +86,39 @@ def grains_case(size: float, runs: Path) -> dict:
                         "stop": {"quantity": "R_top_y", "below_peak_fraction": 0.5}}]}
 
 
+RESUME = HERE / "results" / "resume"  # bundles of stopped runs (--bundle), committed
+BUNDLED = ("checkpoint.npz", "history.csv", "segments.json")  # what a bundle holds: all --resume needs
+
+
+def save_bundle(out: Path) -> Path | None:
+    """Pack the run folder's checkpoint, history and segments into RESUME/<folder>.tar.xz (written to a
+    temporary file and moved into place); None if it has no checkpoint."""
+    if not (out / BUNDLED[0]).exists():
+        return None
+    RESUME.mkdir(parents=True, exist_ok=True)
+    path = RESUME / f"{out.name}.tar.xz"
+    tmp = path.with_name(path.name + ".tmp")
+    with tarfile.open(tmp, "w:xz") as tar:
+        for name in BUNDLED:
+            if (out / name).exists():
+                tar.add(out / name, arcname=name)
+    os.replace(tmp, path)
+    return path
+
+
+def restore_bundle(out: Path) -> bool:
+    """Unpack RESUME/<folder>.tar.xz into a run folder that has no checkpoint: only the BUNDLED files, as
+    plain files (tarfile's "data" filter: no links, no paths out of the folder). True if it did."""
+    path = RESUME / f"{out.name}.tar.xz"
+    if (out / BUNDLED[0]).exists() or not path.exists():
+        return False
+    out.mkdir(parents=True, exist_ok=True)
+    with tarfile.open(path, "r:xz") as tar:
+        members = [m for m in tar.getmembers() if m.isfile() and m.name in BUNDLED]
+        tar.extractall(out, members=members, filter="data")
+    return True
+
+
 def run_key(rec: dict) -> str:
     """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
     stop, aug, pen = rec.get("stop_fraction", 0.5), rec.get("augmentation"), rec.get("penalty")
@@ -130,6 +166,9 @@ def main() -> None:
                     help="EP's kn = kt [Pa/m] (default: the case's, 1e15 on the disc, 2e12 on the grains)")
     ap.add_argument("--checkpoint-every", type=int, default=0,
                     help="save a checkpoint every n converged steps (0: never), for --resume")
+    ap.add_argument("--bundle", action="store_true",
+                    help="pack a run stopped by SIGINT/SIGTERM into results/resume/<run>.tar.xz (to commit) for a "
+                         "later --resume; a run that ends removes its bundle")
     ap.add_argument("--note", default=None,
                     help="a remark on this invocation's runs (e.g. what shared the machine), under the table")
     ap.add_argument("--resume", action="store_true",
@@ -180,16 +219,23 @@ def main() -> None:
             stage["stop"]["below_peak_fraction"] = args.stop_fraction
             aug = args.augmentation if form == "rp" else None
             pen = args.penalty if form == "ep" else None
+            eta = visc
             for coh in sections:
                 coh["form"] = form
+                kn = coh["kn"]  # the case's EP penalty, whose viscous stress eta kn dJ/dt the rows share
                 if pen:
                     coh["kn"] = coh["kt"] = pen
                 if form == "rp":
-                    kn = coh.pop("kn")
+                    coh.pop("kn")
                     coh.pop("kt")
                     coh["augmentation"] = aug or kn
-                if variant.endswith("viscous"):  # load control; the overstress ~ eta kn dJ/dt stays small
-                    coh["viscosity"] = visc  # a relaxation time: plastic jump rate = overstress / (eta kn), RP: / (eta r)
+                # eta is a relaxation time: the plastic jump rate is the overstress over eta k (k = kn for EP,
+                # r for RP), so the overstress of a given flow is eta k dJ/dt. Another k keeps eta k: the
+                # viscous stress of the case's EP rows (at a fixed eta, r = 1e15 on the grains' kn = 2e12 was
+                # 500 times as viscous and carried 3.5 times the load)
+                eta = visc * kn / (pen or aug or kn)
+                if variant.endswith("viscous"):  # load control; the overstress ~ eta k dJ/dt stays small
+                    coh["viscosity"] = eta
             if variant.endswith("viscous"):
                 stage["control"] = "load"
                 stage.pop("max_steps")
@@ -197,6 +243,8 @@ def main() -> None:
                 d["solver"] = {"fallback": "implex"}
             out = runs / (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
                           + (f"_kn{pen:g}" if pen else ""))
+            if args.resume and restore_bundle(out):
+                print(f"{out.name}: unpacked {RESUME / (out.name + '.tar.xz')}", flush=True)
             resume = args.resume and (out / checkpoint.FILE).exists()
             t0 = time.perf_counter()
             s = run_case(parse_case(d), out, overwrite=not resume, resume=resume)
@@ -204,8 +252,11 @@ def main() -> None:
             if s.stop_signal:  # stopped early (SIGINT/SIGTERM): no row (--resume continues it), no more runs
                 print(f"{variant} {steps}: stopped by {s.stop_signal} after {s.result.steps} steps; no row"
                       + (" (--resume continues it)" if args.checkpoint_every else ""), flush=True)
+                if args.bundle and (packed := save_bundle(out)) is not None:
+                    print(f"{variant} {steps}: bundled into {packed} ({packed.stat().st_size / 1e6:.1f} MB)", flush=True)
                 stopped = True
                 break
+            (RESUME / f"{out.name}.tar.xz").unlink(missing_ok=True)  # done: nothing to resume
             h = read_csv(out / "history.csv")
             log = (out / "run.log").read_text()
             r = np.abs(h[reaction])
@@ -229,7 +280,7 @@ def main() -> None:
                    "peak_N_per_m": float(r.max()), "end_fraction": float(r[-1] / r.max()),
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
-                   "viscosity": visc if variant.endswith("viscous") else None,
+                   "viscosity": eta if variant.endswith("viscous") else None,
                    "augmentation": aug, "penalty": pen,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),

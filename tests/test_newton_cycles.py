@@ -139,3 +139,40 @@ def test_the_return_test():
     assert not _returned([3e-5, 2e-8, 4e-7, 2e-10], [0, 5, 0, 4], tol)  # the first one was not within tol
     assert not _returned([3e-5, 1e-10, 4e-9, 2e-10], [0, 5, 0, 4], tol)  # it never left the tolerance
     assert not _returned([1e-10, 4e-7, 2e-10], [5, 0, 4], tol)  # the step's start is not a return
+
+
+class Scripted(ElementGroup):
+    """One dof whose internal force at the k-th evaluation is forces[k] (tangent 1), reporting
+    switches[k] points switched: a script of an iteration whose active set does or does not settle."""
+
+    def __init__(self, forces, switches):
+        self.dofs = np.array([[0, 1]])
+        self.forces, self.switches, self.k = forces, switches, 0
+
+    def evaluate(self, u, u_n):
+        k = min(self.k, len(self.forces) - 1)
+        self.k += 1
+        return Evaluation(np.array([[self.forces[k], u[1]]]), np.array([[[1.0, 0.0], [0.0, 1.0]]]),
+                          n_switched=self.switches[k])
+
+
+def test_an_equilibrium_within_tolerance_converges_once_the_active_set_does_not_settle():
+    """The iterate at 3e-9 (tolerance 1e-8) switched points, and its energy norm (weighed by the
+    correction from 0.2) is 6e-10, above 1e-10. After points switched in every iteration before it,
+    it converges there; where the iterations before it did not switch, it does not (the energy norm
+    keeps the iteration going, and the script's next force, 0.3, is not an equilibrium)."""
+    forces = [1.0, 0.5, 0.3, 0.2, 3e-9, 0.3]
+
+    def run(switches):
+        group = Scripted(forces, switches)
+        model = Model(1, [group], np.zeros(0, dtype=np.int64), dim=2)
+        zero = np.zeros(2)
+        options = NewtonOptions(max_iterations=6, line_search=0)
+        return newton_step(model, np.zeros(2), 0.0, 1.0, Loads(np.zeros(0), np.zeros(0), zero, zero),
+                           make_solver("superlu"), options)
+
+    res = run([0, 4, 3, 5, 2, 1])
+    assert res.converged and res.iterations == 4 and res.residuals[-1] == pytest.approx(3e-9)
+    assert res.energies[-1] > 1e-10  # the energy norm alone would not have converged
+    res = run([0, 0, 0, 0, 2, 1])  # switched only at that iterate: not unsettled
+    assert not res.converged and len(res.residuals) > 5

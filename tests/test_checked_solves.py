@@ -1,6 +1,7 @@
-"""Checked solves: a backend's solution is checked against its equations, and an inaccurate one is
-solved again by another backend, which takes over for the rest of the run at the third matrix where it is accurate
-(PARDISO's static pivoting on RP saddle points, benchmarks/README.md "Fragmentation")."""
+"""Checked solves: a backend's solution is checked against its equations; an inaccurate one is
+refined with its own factors, else solved again by another backend, which takes over for the rest of
+the run at the third matrix where it is accurate (PARDISO's static pivoting on RP saddle points,
+benchmarks/README.md "Fragmentation")."""
 
 import numpy as np
 import pytest

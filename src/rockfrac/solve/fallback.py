@@ -1,7 +1,7 @@
 """Backends made of two: one that hands over to another, for the rest of the run, when it fails
-(``Handover``), and one whose every solve is checked against its equations and retried by another
-where it is not accurate, after refining it with its own factors (``Checked``). Both forward ``begin_step`` and report what happened in
-``notes()`` (the run's log)."""
+(``Handover``), and one whose every solve is checked against its equations, refined with its own
+factors where it is not accurate, and retried by another where that is not enough (``Checked``).
+Both forward ``begin_step`` and report what happened in ``notes()`` (the run's log)."""
 
 from __future__ import annotations
 
@@ -28,8 +28,9 @@ REFINE_STEPS = 5
 # ``then`` takes over for the rest of the run at the third matrix whose solve ``first`` got wrong (and
 # refinement could not mend) where ``then``'s was accurate; the two before, ``then`` solves that matrix
 # only. PARDISO on the grains' RP saddle point was off beyond repair at one factorization in 36 (2e1,
-# after 3 others were refined within 1e-6); handing the run to SuperLU there made each later iteration
-# 3-4 times slower. On the disc's RP nearly every solve is off, and it hands over at once as before.
+# after 3 others were refined within 1e-6), and that one handed the rest of the run to SuperLU, whose
+# factorization on one thread costs 2-3 times PARDISO's on two (the disc). There it took over at the
+# 38th solve all the same; on the disc's RP nearly every solve is off, and it hands over at once.
 HAND_OVER_AFTER = 3
 
 
@@ -83,9 +84,9 @@ class Checked:
     accuracy, solved again by ``then`` (its factors of that matrix). Once ``then``'s solution has met
     the accuracy where ``first``'s did not at HAND_OVER_AFTER matrices, ``then`` solves for the rest of
     the run (``first`` fails on this problem's matrices, e.g. PARDISO's static pivoting on RP saddle
-    points); where ``then``'s does not meet it either, the
-    system is singular to working precision for that right-hand side (a mechanism under path
-    control's load pattern) and the solution with the smaller residual is returned, ``first`` kept.
+    points); where ``then``'s does not meet it either, the system is singular to working precision
+    for that right-hand side (a mechanism under path control's load pattern) and the solution with
+    the smaller residual is returned, ``first`` kept.
     With ``then = None`` solves are only counted. Dense (tiny) systems are not checked: every direct
     backend factorizes them alike (LAPACK, with refinement)."""
 

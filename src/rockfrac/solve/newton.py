@@ -258,7 +258,7 @@ def newton_step(
             # within tolerance once the active set has not settled (points switched in most of the
             # last iterations, ``unsettled``): dozens of points on their yield surfaces with no flow
             # flip at every iterate there, and the next equilibrium within tolerance is the answer
-            # (the small grains' RP refused an iterate at 2.4e-9 with 51 points switching; benchmarks/README.md)
+            # (the small grains' RP refused an iterate at 2.4e-9 with 51 points switching)
             settled = (rel_e <= options.tol_energy or held
                        or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual)
                        or _returned(result.residuals, result.switched, options.tol_residual)
@@ -273,11 +273,11 @@ def newton_step(
         if it == options.max_iterations:
             break
         if period := _cycle_period(result.residuals):
-            result.message = (f"iteration {it}: the iterates cycle " + ("between" if period == 2 else "through")
-                              + f" {_STATES[period]} states (relative residuals "
-                              + ", ".join(f"{v:.3e}" for v in result.residuals[-period:]) + " twice over): more iterations cannot "
-                              "converge; e.g. a point flipping between its elastic and plastic states"
-                              + unsettled(result.switched))
+            states = ("between " if period == 2 else "through ") + _STATES[period]
+            values = ", ".join(f"{v:.3e}" for v in result.residuals[-period:])
+            result.message = (f"iteration {it}: the iterates cycle {states} states (relative residuals "
+                              f"{values} twice over): more iterations cannot converge; e.g. a point "
+                              "flipping between its elastic and plastic states" + unsettled(result.switched))
             result.u, result.lam = u, u_lam
             return result
         a = asm.matrix

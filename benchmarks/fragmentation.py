@@ -19,7 +19,8 @@ peak load, the dissipated energy (the work of the forces, and the law's own acco
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
 run followed a snap-back), and how the run ended. Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
-A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start). Long runs may span sessions: ``--checkpoint-every N``
+A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start; with no
+row added, the table and its json are left as they were). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
 of an uninterrupted run; its wall time, the sum of its parts', counts the steps redone since the last
 checkpoint; each part is in the run folder's segments.json). The run folders (results/runs) are git-ignored and
@@ -202,7 +203,7 @@ def main() -> None:
                 if "variant" in v:
                     v.setdefault("displacement_m", default)
                     record["runs"][run_key(v)] = v
-    stopped = False
+    stopped, added = False, 0  # a stop signal; the rows this invocation added
     for variant in args.variants:
         if stopped:
             break
@@ -292,7 +293,10 @@ def main() -> None:
                    "u_end_over_peak": float(h[reaction.replace("R_", "u_")][-1]
                                             / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
             record["runs"][run_key(rec)] = rec
+            added += 1
             print(variant, steps, rec, flush=True)
+    if args.variants and not added:  # every run stopped early: the table and its json stay as they were
+        return
     order = {"ep": 0, "ep viscous": 1, "rp": 2, "rp viscous": 3}
     rows, labels = [], []
     ordered = sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0),

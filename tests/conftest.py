@@ -2,6 +2,8 @@
 
 import copy
 import math
+import os
+from pathlib import Path
 
 import pytest
 
@@ -58,3 +60,14 @@ def run(tmp_path):
         return read_csv(out / "history.csv"), pts, summary
 
     return _run
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """With ROCKFRAC_RECORD_KERNELS set, a pytest-xdist worker writes the kernel signatures it used
+    (rockfrac.precompile; a worker ends without running Python's exit handlers, other processes
+    write theirs when they exit)."""
+    folder = os.environ.get("ROCKFRAC_RECORD_KERNELS")
+    if folder and os.environ.get("PYTEST_XDIST_WORKER"):
+        from rockfrac.precompile import record
+
+        record(Path(folder))

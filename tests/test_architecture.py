@@ -8,7 +8,8 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "rockfrac"
 LAYERS = ["errors", "values", "files", "_kernel_cache", "compiled", "threads", "analytic", "mesh", "fem", "laws", "elements",
-          "model", "solve", "output", "case", "runner", "parallel", "api", "api_laws", "studies", "bifurcation_cli", "cli"]
+          "model", "solve", "output", "case", "runner", "parallel", "api", "api_laws", "studies", "bifurcation_cli", "precompile",
+          "cli"]
 
 
 def layer(module: str) -> int:

@@ -31,6 +31,24 @@ from rockfrac._kernel_cache import configure as _configure_kernel_cache
 
 KERNEL_CACHE = _configure_kernel_cache()  # before any submodule defines a Numba kernel
 
+
+def _record_kernels_at_exit() -> None:
+    """With ROCKFRAC_RECORD_KERNELS set to a folder, this process writes the kernel signatures it
+    used there when it exits (rockfrac.precompile: how its list is made)."""
+    import atexit
+    import os
+
+    folder = os.environ.get("ROCKFRAC_RECORD_KERNELS")
+    if folder:
+        from pathlib import Path
+
+        from rockfrac.precompile import record
+
+        atexit.register(record, Path(folder))
+
+
+_record_kernels_at_exit()
+
 _EXPORTS = {
     "make_case": ("rockfrac.api", "make_case"),
     "load": ("rockfrac.api", "load"),

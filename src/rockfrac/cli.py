@@ -1,4 +1,4 @@
-"""Command line: ``rockfrac run | drive | paper``."""
+"""Command line: ``rockfrac run | drive | paper | penalty-study | compile | bifurcation``."""
 
 from __future__ import annotations
 
@@ -184,6 +184,24 @@ def _cmd_penalty(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compile(args: argparse.Namespace) -> int:
+    from rockfrac.precompile import LIST, compile_all
+
+    jobs = args.jobs if args.jobs is not None else min(2, os.cpu_count() or 1)
+    t0 = time.perf_counter()
+    parts = compile_all(jobs)
+    done = sum(p.done for p in parts)
+    refused = [r for p in parts for r in p.refused]
+    slowest = max((p.seconds for p in parts), default=0.0)
+    console.print(f"compiled {done} kernel signatures of {LIST.name} on {len(parts)} processes in "
+                  f"{time.perf_counter() - t0:.1f} s (the slowest {slowest:.1f} s) into the kernel cache",
+                  highlight=False)
+    for r in refused:
+        console.print(f"[yellow]warning:[/] not compiled (it compiles at its first call): {escape(r)}",
+                      highlight=False)
+    return 0
+
+
 def _whole_number(unit: str, low: int, high: int):
     """An argparse type: a whole number of ``unit`` from ``low`` to ``high``."""
 
@@ -232,6 +250,10 @@ def parser() -> argparse.ArgumentParser:
     ps.add_argument("--out", type=Path, required=True)
     ps.add_argument("--steps", type=_steps, default=400, help="axial steps per case (default 400)")
     ps.set_defaults(func=_cmd_penalty)
+    c = sub.add_parser("compile", help="compile the kernels for a first run, on several processes at once")
+    c.add_argument("--jobs", type=_jobs, default=None,
+                   help="processes compiling at once (default: 2 where the machine has 2 cores or more)")
+    c.set_defaults(func=_cmd_compile)
     add_bifurcation_parser(sub)
     return p
 

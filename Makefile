@@ -21,20 +21,29 @@ setup: $(STAMP)
 paper: $(STAMP)
 	$(BIN)/rockfrac paper --out $(OUT)
 
+# `rockfrac compile` first: the kernels compiled on two processes at once, not again in each pytest
+# worker and MPI rank (benchmarks/README.md, "The test suite's time")
 test: $(STAMP) $(MPI_STAMP)
 	$(BIN)/python -m mypy
+	$(BIN)/rockfrac compile
 	$(BIN)/python -m pytest -n 2 --dist loadfile
+	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/rockfrac compile
 	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/python -m pytest tests/mpi
 
 # PETSc/MPI (issue 17): Debian's petsc4py (PETSc 3.18 with MUMPS, hypre) seen from a venv of Debian's
 # own Python with its system site packages, NumPy < 2 (Debian's petsc4py is built against NumPy 1);
-# the Debian packages are installed first where they are missing (a fresh machine of this kind)
+# the Debian packages are installed first where they are missing (a fresh machine of this kind).
+# OpenBLAS (serial: the ranks share the cores) becomes the system BLAS and LAPACK that Debian's MUMPS
+# and PETSc call: the reference BLAS they otherwise get made MUMPS 2.7x slower on a 3D joint
+# (benchmarks/README.md, "The test suite's time"). The fast extra: PARDISO for the serial references.
 
 $(MPI_STAMP): pyproject.toml
-	(/usr/bin/python3 -c "import petsc4py, mpi4py, venv" 2>/dev/null && command -v mpiexec >/dev/null) || (apt-get update -qq && \
-		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv python3-petsc4py-real python3-mpi4py openmpi-bin)
+	(/usr/bin/python3 -c "import petsc4py, mpi4py, venv" 2>/dev/null && command -v mpiexec >/dev/null && \
+		dpkg -s libopenblas0-serial >/dev/null 2>&1) || (apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv python3-petsc4py-real python3-mpi4py \
+		openmpi-bin libopenblas0-serial)
 	/usr/bin/python3 -m venv --system-site-packages $(MPI_VENV)
-	$(MPI_VENV)/bin/pip install --quiet -e ".[test]" "numpy>=1.26,<2" "scipy>=1.11,<1.15" "numba>=0.59" "llvmlite>=0.42"
+	$(MPI_VENV)/bin/pip install --quiet -e ".[test,fast]" "numpy>=1.26,<2" "scipy>=1.11,<1.15" "numba>=0.59" "llvmlite>=0.42"
 	touch $(MPI_STAMP)
 
 bench: $(STAMP)

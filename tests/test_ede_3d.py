@@ -126,7 +126,9 @@ def prism(tmp_path_factory):
     out = {}
     for offset in (0.0011, -0.003):
         o = d / f"o{offset:g}"
-        out[offset] = (run_case(parse_case(plane_case(msh, offset)), o), read_csv(o / "history.csv"), o)
+        case = plane_case(msh, offset)
+        case["stages"][1]["path_increment"] = 1e-4  # the slide after the peak in a fifth of the steps
+        out[offset] = (run_case(parse_case(case), o), read_csv(o / "history.csv"), o)
     return out
 
 

@@ -42,15 +42,15 @@ def block(nx: int, ny: int) -> dict:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
     out = {}
-    for name, mesh, angle, y0 in [("20x40 at 56", block(20, 40), 56.0, 0.01013),
-                                  ("40x80 at 56", block(40, 80), 56.0, 0.01013),
+    for name, mesh, angle, y0 in [("10x20 at 56", block(10, 20), 56.0, 0.01013),
+                                  ("20x40 at 56", block(20, 40), 56.0, 0.01013),
                                   ("20x40 at 45", block(20, 40), 45.0, 0.02017)]:
         d = tmp_path_factory.mktemp("crack")
         out[name] = (run_case(parse_case(crack_case(mesh, angle, y0)), d), read_csv(d / "history.csv"))
     return out
 
 
-@pytest.mark.parametrize("name", ["20x40 at 56", "40x80 at 56", "20x40 at 45"])
+@pytest.mark.parametrize("name", ["10x20 at 56", "20x40 at 56", "20x40 at 45"])
 def test_straight_crack_slides_to_the_closed_form_residual(runs, name):
     """After full softening the force is the confinement times the width within 0.5 %, every cell's
     jump is the same (rigid sliding) and its shear traction is zero."""
@@ -67,9 +67,9 @@ def test_straight_crack_slides_to_the_closed_form_residual(runs, name):
 
 
 def test_two_meshes_trace_the_same_post_peak_curve(runs):
-    """The 20 x 40 and 40 x 80 meshes give the same force at equal top displacement after the peak
+    """The 10 x 20 and 20 x 40 meshes give the same force at equal top displacement after the peak
     (within 5 %): no mesh dependence of a crack given in advance."""
-    (_, a), (_, b) = runs["20x40 at 56"], runs["40x80 at 56"]
+    (_, a), (_, b) = runs["10x20 at 56"], runs["20x40 at 56"]
     ua, fa = a["u_axial"][a["stage"] == "axial"], a["F_axial"][a["stage"] == "axial"]
     ub, fb = b["u_axial"][b["stage"] == "axial"], b["F_axial"][b["stage"] == "axial"]
     peak = ua[np.argmax(fa)]

@@ -19,7 +19,7 @@ import pytest
 from rockfrac.cli import main
 from rockfrac.output.csvout import read_csv
 
-STEPS = 3000  # ~2 ms each: the run is still stepping when the signal comes
+STEPS = 1000  # ~2 ms each: the run is still stepping when the signal comes (after 30 to 80 rows)
 CASE = f"""
 title = "RP CSE, many small steps"
 [mesh]

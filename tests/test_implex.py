@@ -11,6 +11,7 @@ import pytest
 from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.output.csvout import read_csv
 from rockfrac.runner import run_case
+from test_rock_tests import elastic_start
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,11 +72,7 @@ def test_implex_fallback_takes_a_fragmenting_disc_down_its_snap_back(tmp_path):
     # (elastic) step to 0.4 of its displacement, then the rest at the example's load step and path
     # increment
     d["solver"] = {"fallback": "implex", "max_iterations": 10}
-    split = d["stages"][0]
-    split["path_increment"] = abs(split["displacement"]["load_top"]["y"]) / split["steps"]
-    d["stages"].insert(0, {"name": "elastic", "steps": 1, "displacement": {
-        g: {c: 0.4 * v for c, v in comps.items()} for g, comps in split["displacement"].items()}})
-    split["steps"] = 120
+    elastic_start(d, 0.4)
     s = run_case(parse_case(d), tmp_path)
     h = read_csv(tmp_path / "history.csv")
     log = (tmp_path / "run.log").read_text()

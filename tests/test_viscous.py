@@ -12,6 +12,7 @@ import pytest
 from rockfrac.case.schema import CaseError, parse_case
 from rockfrac.output.csvout import read_csv
 from rockfrac.runner import run_case
+from test_rock_tests import elastic_start
 
 ROOT = Path(__file__).resolve().parents[1]
 WIDTH, GC, SIGMA_C = 0.01, 100.0, 1e6  # m, J/m^2, Pa: delta_c = 2 Gc / sigma_c = 0.2 mm
@@ -153,10 +154,7 @@ def test_viscous_brazilian_disc_splits_under_load_control(tmp_path):
     # the first surface yields at 0.45 of the stage: one (elastic) step to 0.4 of its displacement,
     # then the rest at the example's load step, the relaxation time scaled to the shorter stage (the same
     # 1e-10 m of the platen's travel: history.csv's time is a stage's load factor)
-    split = d["stages"][0]
-    d["stages"].insert(0, {"name": "elastic", "steps": 1, "displacement": {
-        g: {c: 0.4 * v for c, v in comps.items()} for g, comps in split["displacement"].items()}})
-    split["steps"] = 120
+    elastic_start(d, 0.4)
     d["cohesive"]["viscosity"] /= 0.6
     d["solver"] = {"max_iterations": 20}  # converged steps take at most 15: failed ones stop sooner
     s, h = run(tmp_path, "disc", d)

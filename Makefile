@@ -21,13 +21,26 @@ setup: $(STAMP)
 paper: $(STAMP)
 	$(BIN)/rockfrac paper --out $(OUT)
 
-# `rockfrac compile` first: the kernels compiled on two processes at once, not again in each pytest
-# worker and MPI rank (benchmarks/README.md, "The test suite's time")
-test: $(STAMP) $(MPI_STAMP)
-	$(BIN)/python -m mypy
+# The kernels: the build step of a Numba package. `rockfrac compile` compiles every listed kernel on
+# two processes into the kernel cache, once per version of the sources (a rule on every source
+# file: an edit compiles them all again, as the cache's key does), not in each pytest worker and MPI
+# rank (benchmarks/README.md, "The test suite's time"). Each venv has its own cache: .venv-mpi's
+# NumPy 1 compiles its own.
+SOURCES := $(shell find src/rockfrac -name '*.py') src/rockfrac/kernel_signatures.json
+KERNELS := $(VENV)/.kernels
+MPI_KERNELS := $(MPI_VENV)/.kernels
+
+$(KERNELS): $(STAMP) $(SOURCES)
 	$(BIN)/rockfrac compile
-	$(BIN)/python -m pytest -n 2 --dist loadfile
+	touch $(KERNELS)
+
+$(MPI_KERNELS): $(MPI_STAMP) $(SOURCES)
 	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/rockfrac compile
+	touch $(MPI_KERNELS)
+
+test: $(KERNELS) $(MPI_KERNELS)
+	$(BIN)/python -m mypy
+	$(BIN)/python -m pytest -n 2 --dist loadfile
 	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/python -m pytest tests/mpi
 
 # PETSc/MPI (issue 17): Debian's petsc4py (PETSc 3.18 with MUMPS, hypre) seen from a venv of Debian's

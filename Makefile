@@ -40,7 +40,7 @@ $(MPI_KERNELS): $(MPI_STAMP) $(SOURCES)
 
 test: $(KERNELS) $(MPI_KERNELS)
 	$(BIN)/python -m mypy
-	$(BIN)/python -m pytest -n 2 --dist loadfile
+	$(BIN)/python -m pytest -n 2 --dist loadfile --no-loadscope-reorder
 	PETSC_DIR=$(PETSC_DIR) NUMBA_CACHE_DIR=$(MPI_VENV)/numba-cache $(MPI_VENV)/bin/python -m pytest tests/mpi
 
 # PETSc/MPI (issue 17): Debian's petsc4py (PETSc 3.18 with MUMPS, hypre) seen from a venv of Debian's

@@ -62,6 +62,38 @@ def run(tmp_path):
     return _run
 
 
+# The test files that take longest, longest first (seconds a file on one worker, measured 2026-11-30):
+# `make test` hands whole files to its 2 pytest-xdist workers in collection order
+# (`--dist loadfile --no-loadscope-reorder`), so the long ones start first and the short ones fill
+# in at the end (xdist's own reordering, by the number of tests in a file, sent the one-test 53 s
+# file among the last). Files not listed follow in pytest's order. A stale list costs balance only.
+LONGEST_FIRST = (
+    "test_examples.py",  # 74 s
+    "test_nodal_3d.py",  # 68
+    "test_resume_and_vtk.py",  # 68
+    "test_nodal_bands.py",  # 59
+    "test_ede_3d.py",  # 54
+    "test_band_meshes.py",  # 53
+    "test_paper_study.py",  # 47
+    "test_rock_tests.py",  # 45
+    "test_solids_3d.py",  # 39
+    "test_traction3d.py",  # 34
+    "test_embedded_cracks.py",  # 31
+    "test_path_controls.py",  # 29
+    "test_viscous.py",  # 26
+    "test_crack_tracking.py",  # 25
+    "test_fast_paths.py",  # 23
+    "test_interrupts.py",  # 20
+)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """The tests of the LONGEST_FIRST files first, in that order (a stable sort: a file's own tests
+    keep their order)."""
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 def pytest_sessionfinish(session, exitstatus):
     """With ROCKFRAC_RECORD_KERNELS set, a pytest-xdist worker writes the kernel signatures it used
     (rockfrac.precompile; a worker ends without running Python's exit handlers, other processes

@@ -510,6 +510,15 @@ def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):
     assert "not in equilibrium" in str(par["error"]) and "gravity" in str(par["error"])
 
 
+def test_elimination_is_refused_on_ranks(tmp_path):
+    """[solver] elimination = true runs on one process only (its stalled unknowns may lie on several
+    ranks): refused on every rank before anything is built, with the key named."""
+    case = paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3)
+    case["solver"] = {"elimination": True}
+    par = mpirun(2, "history", case, tmp_path)
+    assert "[solver] elimination = true runs on one process only" in str(par["error"])
+
+
 def test_auto_on_ranks_takes_gamg_for_large_3d_models_and_hands_over_to_mumps(tmp_path):
     """'auto' on several ranks: MUMPS's LU, except on a 3D model of at least AMG_FROM_3D dofs, where
     it is GMRES + GAMG handing over to MUMPS at its first failure (the serial rule). The jointed

@@ -17,6 +17,8 @@ it, or one within tolerance after points switched in most of the last iterations
 element-level equations of condensed unknowns (the embedded jumps) met to the residual tolerance,
 and, under path control, the constraint met.
 A correction that raises the residual is halved (line search) from the third iteration on.
+With ``eliminate`` (``[solver] elimination``), an iteration that has stalled with its residual on a
+few unknowns solves those alone first (:mod:`rockfrac.solve.elimination`).
 Every iteration is logged, with the number of points whose state its iterate switched (an active-set
 change: a cohesive point between elastic or constrained and plastic, an embedded crack between
 sticking and sliding), which the step control reads (:mod:`rockfrac.solve.stepping`).
@@ -34,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rockfrac.model import Model
+from rockfrac.solve.elimination import eliminate, stalled
 from rockfrac.solve.linear import LinearSolver
 
 
@@ -44,6 +47,7 @@ class NewtonOptions:
     tol_energy: float = 1e-10
     force_scale: float = 1.0  # floor of the residual reference [N/m]
     line_search: int = 3  # most halvings of a correction that raises the residual (0: plain Newton)
+    eliminate: bool = False  # a stalled iteration solves the few unknowns carrying its residual alone (elimination)
     should_stop: Callable[[], bool] | None = None  # looked at before every iteration (a stop request)
 
 
@@ -92,6 +96,7 @@ class NewtonResult:
     time_solve: float = 0.0  # seconds in factorization and triangular solves
     interrupted: bool = False  # ended by options.should_stop (not converged, nothing wrong)
     switched: list[int] = field(default_factory=list)  # points whose state switched at each iterate (active set)
+    eliminated: list[int] = field(default_factory=list)  # iterations that were a local solve (elimination)
 
     @property
     def switching_iterations(self) -> int:
@@ -201,6 +206,7 @@ def newton_step(
     rel = np.inf
     pending = None  # the assembly at u made by the line search
     rigid = False  # the last correction could not move g (it pushed the load by control.predictor)
+    tried = -3  # the iteration of the last elimination tried
 
     def relative(asm, f_ext) -> float:
         ref = max(model.norm(f_ext, "free"), model.norm(asm.residual, "dirichlet"), options.force_scale)
@@ -272,6 +278,16 @@ def newton_step(
                 return result
         if it == options.max_iterations:
             break
+        if (options.eliminate and (stalled(result.residuals) or _cycle_period(result.residuals))
+                and it - tried >= 3):  # not again before its effect shows (then a cycle ends the step)
+            tried = it
+            local = eliminate(model, u, u_n, f_ext, asm)
+            if local is not None:
+                result.eliminated.append(it)
+                last_du = local.u - u
+                u, pending = local.u, local.assembled
+                result.iterations = it + 1
+                continue
         if period := _cycle_period(result.residuals):
             states = ("between " if period == 2 else "through ") + _STATES[period]
             values = ", ".join(f"{v:.3e}" for v in result.residuals[-period:])

@@ -512,11 +512,14 @@ def test_an_initial_state_out_of_equilibrium_is_refused_on_every_rank(tmp_path):
 
 def test_elimination_is_refused_on_ranks(tmp_path):
     """[solver] elimination = true runs on one process only (its stalled unknowns may lie on several
-    ranks): refused on every rank before anything is built, with the key named."""
+    ranks): refused on every rank before anything is built, with the key named, by the driver and by
+    `mpiexec rockfrac run`."""
     case = paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3)
     case["solver"] = {"elimination": True}
     par = mpirun(2, "history", case, tmp_path)
     assert "[solver] elimination = true runs on one process only" in str(par["error"])
+    done = rockfrac_on_ranks(2, case_file(case, tmp_path / "elimination.toml"), tmp_path / "out")
+    assert done.returncode != 0 and "[solver] elimination = true" in done.stdout + done.stderr
 
 
 def test_auto_on_ranks_takes_gamg_for_large_3d_models_and_hands_over_to_mumps(tmp_path):

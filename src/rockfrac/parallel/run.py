@@ -75,10 +75,6 @@ def build_distributed(case: Case | str | Path, comm, path_label: str | None = No
     label = path_label or (str(case) if not isinstance(case, Case) else "<case>")
     if not isinstance(case, Case):
         case = load_case(case)
-    if case.solver.elimination and comm.Get_size() > 1:
-        raise CaseError(f"{label}: [solver] elimination = true runs on one process only: on {comm.Get_size()} "
-                        "MPI ranks the stalled unknowns may lie on several of them; run it without mpiexec, or "
-                        "without elimination")
     return build(case, label, distribution(comm))
 
 

@@ -127,3 +127,17 @@ def test_the_option_reaches_newton_and_a_run_that_never_stalls_is_unchanged(run)
     assert h_on.keys() == h_off.keys()
     for key in h_off:
         np.testing.assert_array_equal(h_on[key], h_off[key])
+
+
+def test_a_case_without_the_key_resolves_to_the_text_it_had_before_the_key():
+    """A checkpoint's case digest is that of the resolved case's text: unset, the key is not in it, so
+    the runs checkpointed before it existed still resume (the grains' bundles)."""
+    from conftest import paper_case
+
+    from rockfrac.case.schema import parse_case
+
+    case = parse_case(paper_case("ep", 1e12), "off")
+    assert "elimination" not in case.model_dump(mode="json", exclude_none=True)["solver"]
+    on = paper_case("ep", 1e12)
+    on["solver"] = {"elimination": True}
+    assert parse_case(on, "on").model_dump(mode="json", exclude_none=True)["solver"]["elimination"] is True

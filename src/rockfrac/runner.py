@@ -479,7 +479,7 @@ def engine_options(built: Built, should_stop: Callable[[], bool] | None = None
                                fallback=sol.fallback, implex_tol=sol.implex_tol)
     newton = NewtonOptions(sol.max_iterations, sol.tol_residual, sol.tol_energy,
                            force_scale=1e-6 * max(m.E for m in case.material_list) * _size(built),
-                           eliminate=sol.elimination, should_stop=should_stop)
+                           eliminate=bool(sol.elimination), should_stop=should_stop)
     return newton, stepping
 
 

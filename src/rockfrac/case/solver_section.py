@@ -52,9 +52,12 @@ class SolverSection(_Section):
                                     "study does")
     implex_tol: float = Field(0.05, ge=1e-6, le=10.0, description="IMPL-EX: largest |T_ex - T| of a step "
                               "relative to the law's strength; a step above it is shortened, below it may grow")
-    elimination: bool = Field(False, description="a Newton iteration that has stalled with its residual on a few "
-                              "unknowns (a point where the traction law bends on a scale below the corrections) "
-                              "solves those unknowns alone, every other held, then goes on (serial runs only)")
+    # unset (None) when not given, so that a case without it resolves to the text it had before the key
+    # existed: a checkpoint's case digest is that text's, and the runs checkpointed then still resume
+    elimination: bool | None = Field(None, description="true: a Newton iteration that has stalled with its residual "
+                                     "on a few unknowns (a point where the traction law bends on a scale below the "
+                                     "corrections) solves those unknowns alone, every other held, then goes on "
+                                     "(serial runs only); false or unset: off")
     fallback: Literal["none", "implex"] = Field(
         "none", description="when a step fails at min_step: 'none' stops the run there (cleanly); 'implex' "
         "switches the EP cohesive surfaces to IMPL-EX integration for the rest of the run (logged) and goes on")

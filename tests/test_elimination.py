@@ -15,9 +15,9 @@ A = 0.3  # the kinked unknown's root [m]
 
 class Kinked(ElementGroup):
     """One element on dofs 0..n-1: internal forces (sign(x - A) sqrt|x - A| + 1e-3 (x - y_1), K y - b + ...)
-    [N]. Newton's correction of x alone maps x - A to -(x - A): from anywhere the iterates go round a
-    2-cycle of equal residuals, whatever the line search (no correction lowers the residual), while the
-    other unknowns, linear and weakly coupled, converge at once."""
+    [N]. Newton's correction of x alone maps x - A to -(x - A): from anywhere plain Newton's iterates
+    go round a 2-cycle of (nearly) equal residuals, while the other unknowns, linear and weakly
+    coupled, converge at once (a halving of the correction would land on the kink)."""
 
     def __init__(self, n: int = 6):
         self.dofs = np.arange(n)[None, :]

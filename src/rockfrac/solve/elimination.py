@@ -13,7 +13,6 @@ it lowers the local residual by a quarter of its step's share (Armijo's test on 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,18 +63,16 @@ def stalled_unknowns(residual: np.ndarray, free: np.ndarray) -> np.ndarray | Non
     return np.sort(free[top[: enough[0] + 1]])
 
 
-def eliminate(model: Model, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray, assembled: Assembled,
-              assemble: Callable[[np.ndarray], Assembled] | None = None) -> Eliminated | None:
+def eliminate(model: Model, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray,
+              assembled: Assembled) -> Eliminated | None:
     """Solve the rows of the stalled unknowns for those unknowns, every other one held (a damped
-    Newton on their block of the tangent); None if the residual is not local or the local residual
-    could not be lowered. ``assemble``: u -> the model's assembly at u (default: model.assemble with
-    u_n and f_ext)."""
+    Newton on their block of the tangent, each trial the model's assembly at u_n and f_ext); None if
+    the residual is not local or the local residual could not be lowered."""
     if model.distributed:  # the unknowns would be on several ranks
         return None
     unknowns = stalled_unknowns(assembled.residual, model.free)
     if unknowns is None:
         return None
-    at = assemble or (lambda x: model.assemble(x, u_n, f_ext))
     start, asm = u, assembled
     before = now = float(np.linalg.norm(asm.residual[unknowns]))
     current = True  # the groups' trial state is that of (u, asm)
@@ -89,7 +86,7 @@ def eliminate(model: Model, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray, a
         for _ in range(HALVINGS + 1):
             x = u.copy()
             x[unknowns] += alpha * step
-            trial = at(x)
+            trial = model.assemble(x, u_n, f_ext)
             current = False
             if trial.ok and np.all(np.isfinite(trial.residual)):
                 norm = float(np.linalg.norm(trial.residual[unknowns]))
@@ -103,7 +100,7 @@ def eliminate(model: Model, u: np.ndarray, u_n: np.ndarray, f_ext: np.ndarray, a
         if now <= REDUCTION * before:
             break
     if not current:  # the last trial was refused: the groups' trial state back at the iterate kept
-        asm = at(u)
+        asm = model.assemble(u, u_n, f_ext)
     if u is start:
         return None
     return Eliminated(u, asm, unknowns, before, now)

@@ -149,6 +149,62 @@ def segment(out: Path, wall: float, summary, resumed: bool) -> float:
     return sum(seg["wall_s"] for seg in done)
 
 
+def base_case(args: argparse.Namespace, size: float, runs: Path) -> tuple[dict, float]:
+    """The specimen's case before the variant (``args``: specimen, displacement, checkpoint_every) and
+    the EP rows' viscosity [pseudo-time]: the same relaxation time per metre of loading."""
+    base = disc_case(size, runs) if args.specimen == "disc" else grains_case(size, runs)
+    base["output"] = {"vtk": False, "picture": False, "points": False, "checkpoint_every": args.checkpoint_every}
+    visc = VISCOSITY[args.specimen]
+    if args.displacement is not None:  # a stage is one unit of pseudo-time
+        visc *= (1e-4 if args.specimen == "disc" else 1e-3) / args.displacement
+    return base, visc
+
+
+def variant_case(base: dict, args: argparse.Namespace, variant: str, steps: int, visc: float) -> tuple[dict, str, float]:
+    """One run's case: ``variant`` ("ep", "rp", "ep viscous", "rp viscous") at ``steps`` nominal steps
+    (``args``: specimen, displacement, stop_fraction, augmentation, penalty, elimination); its run
+    folder's name; its viscosity eta."""
+    form = variant.split()[0]
+    d = json.loads(json.dumps(base))
+    sections = d["cohesive"] if isinstance(d["cohesive"], list) else [d["cohesive"]]
+    stage = d["stages"][0]
+    stage["steps"] = steps
+    loaded = stage["displacement"]["load_top" if args.specimen == "disc" else "top"]
+    if args.displacement is not None:
+        loaded["y"] = -args.displacement
+    stage["max_steps"] = 40 * steps
+    stage["stop"]["below_peak_fraction"] = args.stop_fraction
+    aug = args.augmentation if form == "rp" else None
+    pen = args.penalty if form == "ep" else None
+    eta = visc
+    for coh in sections:
+        coh["form"] = form
+        kn = coh["kn"]  # the case's EP penalty, whose viscous stress eta kn dJ/dt the rows share
+        if pen:
+            coh["kn"] = coh["kt"] = pen
+        if form == "rp":
+            coh.pop("kn")
+            coh.pop("kt")
+            coh["augmentation"] = aug or kn
+        # eta is a relaxation time: the plastic jump rate is the overstress over eta k (k = kn for EP,
+        # r for RP), so the overstress of a given flow is eta k dJ/dt. Another k keeps eta k: the
+        # viscous stress of the case's EP rows (at a fixed eta, r = 1e15 on the grains' kn = 2e12 was
+        # 500 times as viscous and carried 3.5 times the load)
+        eta = visc * kn / (pen or aug or kn)
+        if variant.endswith("viscous"):  # load control; the overstress ~ eta k dJ/dt stays small
+            coh["viscosity"] = eta
+    if variant.endswith("viscous"):
+        stage["control"] = "load"
+        stage.pop("max_steps")
+    elif form == "ep":
+        d["solver"] = {"fallback": "implex"}
+    if args.elimination:
+        d.setdefault("solver", {})["elimination"] = True
+    name = (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
+            + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else ""))
+    return d, name, eta
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--specimen", choices=("disc", "grains"), default="disc")
@@ -187,11 +243,8 @@ def main() -> None:
     runs = HERE / "results" / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     size = args.size or SIZE[args.specimen]
-    base = disc_case(size, runs) if args.specimen == "disc" else grains_case(size, runs)
-    base["output"] = {"vtk": False, "picture": False, "points": False, "checkpoint_every": args.checkpoint_every}
-    visc, reaction = VISCOSITY[args.specimen], REACTION[args.specimen]
-    if args.displacement is not None:  # the same relaxation time per metre of loading: a stage is one unit of
-        visc *= (1e-4 if args.specimen == "disc" else 1e-3) / args.displacement  # pseudo-time
+    base, visc = base_case(args, size, runs)
+    reaction = REACTION[args.specimen]
     name = "fragmentation" if args.specimen == "disc" else "fragmentation_grains"
     if size != SIZE[args.specimen]:  # another mesh: its own results and table (README.md markers)
         name += f"_{1e3 * size:g}mm"
@@ -210,45 +263,12 @@ def main() -> None:
     for variant in args.variants:
         if stopped:
             break
-        form = variant.split()[0]
         for steps in args.steps:
-            d = json.loads(json.dumps(base))
-            sections = d["cohesive"] if isinstance(d["cohesive"], list) else [d["cohesive"]]
-            stage = d["stages"][0]
-            stage["steps"] = steps
-            loaded = stage["displacement"]["load_top" if args.specimen == "disc" else "top"]
-            if args.displacement is not None:
-                loaded["y"] = -args.displacement
-            stage["max_steps"] = 40 * steps
-            stage["stop"]["below_peak_fraction"] = args.stop_fraction
-            aug = args.augmentation if form == "rp" else None
-            pen = args.penalty if form == "ep" else None
-            eta = visc
-            for coh in sections:
-                coh["form"] = form
-                kn = coh["kn"]  # the case's EP penalty, whose viscous stress eta kn dJ/dt the rows share
-                if pen:
-                    coh["kn"] = coh["kt"] = pen
-                if form == "rp":
-                    coh.pop("kn")
-                    coh.pop("kt")
-                    coh["augmentation"] = aug or kn
-                # eta is a relaxation time: the plastic jump rate is the overstress over eta k (k = kn for EP,
-                # r for RP), so the overstress of a given flow is eta k dJ/dt. Another k keeps eta k: the
-                # viscous stress of the case's EP rows (at a fixed eta, r = 1e15 on the grains' kn = 2e12 was
-                # 500 times as viscous and carried 3.5 times the load)
-                eta = visc * kn / (pen or aug or kn)
-                if variant.endswith("viscous"):  # load control; the overstress ~ eta k dJ/dt stays small
-                    coh["viscosity"] = eta
-            if variant.endswith("viscous"):
-                stage["control"] = "load"
-                stage.pop("max_steps")
-            elif form == "ep":
-                d["solver"] = {"fallback": "implex"}
-            if args.elimination:
-                d.setdefault("solver", {})["elimination"] = True
-            out = runs / (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
-                          + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else ""))
+            d, name, eta = variant_case(base, args, variant, steps, visc)
+            loaded = d["stages"][0]["displacement"]["load_top" if args.specimen == "disc" else "top"]
+            aug = args.augmentation if variant.startswith("rp") else None
+            pen = args.penalty if variant.startswith("ep") else None
+            out = runs / name
             if args.resume and restore_bundle(out):
                 print(f"{out.name}: unpacked {RESUME / (out.name + '.tar.xz')}", flush=True)
             resume = args.resume and (out / checkpoint.FILE).exists()

@@ -189,10 +189,12 @@ def test_tiny_systems_are_not_checked():
 
 
 @needs_pardiso
-def test_pardiso_is_checked_by_superlu_under_auto_and_checked_alone_by_name():
+def test_pardiso_is_checked_by_itself_without_matching_then_superlu_under_auto_and_alone_by_name():
     auto = linear.make_solver("auto")
-    assert isinstance(auto, Checked) and isinstance(auto.first, linear.Pardiso)
-    assert isinstance(auto.then, linear.SuperLU)
+    assert isinstance(auto, Checked) and isinstance(auto.first, linear.Pardiso) and auto.first.matching
+    assert isinstance(auto.then, Checked) and isinstance(auto.then.first, linear.Pardiso)
+    assert not auto.then.first.matching and auto.then.first.name == "pardiso without matching"
+    assert isinstance(auto.then.then, linear.SuperLU)
     named = linear.make_solver("pardiso")
     assert isinstance(named, Checked) and isinstance(named.first, linear.Pardiso) and named.then is None
     assert isinstance(linear.make_solver("superlu"), linear.SuperLU)
@@ -214,3 +216,58 @@ def test_a_load_step_reaches_pardiso_through_every_wrapper():
     solver.begin_step()
     pardiso.factorize(a)
     assert pardiso.analyses == 2
+
+
+@needs_pardiso
+def test_pardiso_without_matching_sets_mkls_defaults_but_scaling_and_matching(saddle):
+    """The default backend leaves PARDISO's controls to MKL (iparm(1) = 0, the first version's bits);
+    without matching they are MKL's defaults for the type (pardisoinit) with iparm(11) = iparm(13) = 0.
+    On the paper's rigid RP saddle point the matching avoids every perturbed pivot; without it some
+    are perturbed (iparm(14), PARDISO's own count), and the checked solve still meets the accuracy."""
+    b = np.random.default_rng(6).standard_normal(saddle.shape[0])
+    plain, bare = linear.Pardiso(), linear.Pardiso(matching=False)
+    x = plain.factorize(saddle).solve(b)
+    assert relative_residual(saddle, x, b) < 1e-10 and plain._solver.iparm[13] == 0
+    assert plain._solver.iparm[10] == plain._solver.iparm[12] == 1  # what MKL chose for itself
+    bare.factorize(saddle).solve(b)
+    ip = bare._solver.iparm
+    assert ip[0] == 1 and ip[10] == 0 and ip[12] == 0 and ip[9] == 13 and ip[7] == 2  # eps 1e-13, 2 refinements
+    assert ip[1] == plain._solver.iparm[1]  # MKL's own ordering
+    assert ip[13] > 0  # perturbed pivots: the matching really is off
+    checked = Checked(linear.Pardiso(matching=False), None)
+    y = checked.factorize(saddle).solve(b)
+    assert relative_residual(saddle, y, b) <= ACCURACY
+    exact = spla.splu(saddle.tocsc()).solve(b)
+    assert np.abs(y - exact).max() <= 1e-5 * np.abs(exact).max()
+    sym = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(6000, 6000), format="csr")  # symmetric: mtype -2
+    bare.factorize(sym)
+    assert bare.mtype == -2 and bare._solver.iparm[12] == 0 and bare._solver.iparm[9] == 8  # MKL's -2 defaults
+
+
+def test_a_chain_of_checked_backends_hands_over_stage_by_stage(saddle):
+    """Checked(first, Checked(second, third)), as 'auto' builds it with PARDISO, PARDISO without matching
+    and SuperLU: a solve that the first backend gets wrong goes to the second, whose own wrong solves go
+    to the third; each stage takes over at the third matrix its fallback solved accurately."""
+    b = np.random.default_rng(7).standard_normal(saddle.shape[0])
+    first, second, third = Perturbed(1e-9), Perturbed(1e-13), Counting()
+    inner = Checked(second, third)
+    solver = Checked(first, inner)
+    for k in range(1, HAND_OVER_AFTER + 1):  # the second's factors are refined to the accuracy: third not asked
+        x = solver.factorize(saddle).solve(b)
+        assert relative_residual(saddle, x, b) <= ACCURACY
+        assert first.factorizations == k and second.factorizations == k and third.factorizations == 0
+    assert "perturbed's solution of a" in solver.handed_over and inner.refined == HAND_OVER_AFTER
+    solver.factorize(saddle).solve(b)  # handed over: the first is not asked
+    assert first.factorizations == HAND_OVER_AFTER and second.factorizations == HAND_OVER_AFTER + 1
+    # the second stage gets them wrong too: the third solves, and takes over from the second at the third
+    first, second, third = Perturbed(1e-9), Perturbed(1e-9), Counting()
+    inner = Checked(second, third)
+    solver = Checked(first, inner)
+    for k in range(1, HAND_OVER_AFTER + 2):
+        x = solver.factorize(saddle).solve(b)
+        assert relative_residual(saddle, x, b) < 1e-12 and third.factorizations == k
+    assert solver.handed_over and inner.handed_over and "counting solved from then on" in inner.handed_over
+    assert second.factorizations == HAND_OVER_AFTER  # the inner stage's handover: its first backend not asked
+    notes = solver.notes()
+    assert any("solved from then on" in n and n.startswith("perturbed's solution") for n in notes)
+    assert any(n.startswith("perturbed's solution") and "counting solved from then on" in n for n in notes)

@@ -161,6 +161,11 @@ class Pardiso(_Backend):
     they were even under that load. A system keeps one thread count through all its phases (the
     count depends on its size only). Where the MKL runtime lacks the symbol, MKL's default is used
     (benchmarks/README.md, "Serial path for small systems").
+
+    ``matching = False``: an unsymmetric matrix is factorized without MKL's default weighted matching
+    and scaling (iparm(11) = iparm(13) = 0, every other control MKL's default). On saddle points with loops of RP multipliers round every node the matching perturbed
+    700-900 pivots (residuals up to 1) and cost 2.4x the factorization; without it 60-430 pivots,
+    residuals within 1e-6 after refinement (benchmarks/README.md, "PARDISO without matching").
     """
 
     name = "pardiso"
@@ -170,8 +175,12 @@ class Pardiso(_Backend):
     symmetric_from = 5_000  # rows from which "auto" checks the symmetry
     symmetry_tol = 1e-13  # max |A - A^T| / max |A| accepted as symmetric (assembly round-off)
 
-    def __init__(self) -> None:
+    def __init__(self, matching: bool = True) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
+
+        self.matching = matching
+        if not matching:
+            self.name = "pardiso without matching"
 
         self._solver: Any = None  # pypardiso's solver (its ctypes handle and arrays)
         self._pattern: _Pattern | None = None
@@ -274,9 +283,27 @@ class Pardiso(_Backend):
             self._ia[1:] = np.cumsum(np.bincount(rows[self._upper], minlength=a.shape[0]))
             self._ia += 1
             self._ja = (a.indices[self._upper] + 1).astype(np.int32)
+        self._set_controls()
         self._call(11, a.data if mtype == 11 else a.data[self._upper], np.zeros((a.shape[0], 1)))
         self._new_step = False
         self.analyses += 1
+
+    def _set_controls(self) -> None:
+        """PARDISO's iparm for the analysed type: MKL's defaults (iparm(1) = 0: PARDISO sets them), or,
+        without matching, the defaults MKL's ``pardisoinit`` gives the type with iparm(11) = iparm(13) = 0
+        (no scaling, no weighted matching; the symmetric type has neither by default)."""
+        if self.matching:  # untouched: MKL's defaults, as the first version ran them
+            return
+        import ctypes
+
+        iparm = self._solver.iparm
+        iparm[:] = 0
+        scratch = np.zeros(64, dtype=np.int64)  # pardisoinit also clears a handle: not the live one
+        self._solver.libmkl.pardisoinit(scratch.ctypes.data_as(ctypes.c_void_p),
+                                        ctypes.byref(ctypes.c_int32(self.mtype)),
+                                        iparm.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)))
+        iparm[10] = 0  # iparm(11): no scaling
+        iparm[12] = 0  # iparm(13): no weighted matching
 
     def matrix_type(self, a: sp.csr_matrix) -> int:
         """11, or -2 where ``symmetric = "auto"``, ``a`` has at least ``symmetric_from`` rows and is
@@ -409,12 +436,14 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
     'auto' on a 3D model of at least AMG_FROM_3D dofs (RP multipliers or not) without nodal cracks'
     ``enrichment`` (their unknowns span the region that may crack: a Schur block as large as that
     is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure.
-    PARDISO's solves are checked (``Checked``): under 'auto' SuperLU retries an inaccurate one and
-    takes over where it is accurate; chosen by name, they are counted in the run's log."""
+    PARDISO's solves are checked (``Checked``): under 'auto' PARDISO without matching retries an
+    inaccurate one, and SuperLU one that stays inaccurate; each takes over where it is accurate
+    (three matrices); chosen by name, they are counted in the run's log."""
     if name == "auto":
         installed = available()
         first = next(n for n in PREFERENCE if n in installed)
-        direct: LinearSolver = Checked(Pardiso(), SuperLU()) if first == "pardiso" else SOLVERS[first]()
+        direct: LinearSolver = (Checked(Pardiso(), Checked(Pardiso(matching=False), SuperLU())) if first == "pardiso"
+                                else SOLVERS[first]())
         three_d = coordinates is not None and coordinates.shape[1] == 3
         if three_d and n_dofs >= AMG_FROM_3D and not enrichment and "gmres-amg" in installed:
             return Handover(KrylovAMG(coordinates), direct)

@@ -88,11 +88,13 @@ def grains_case(size: float, runs: Path) -> dict:
 
 
 RESUME = HERE / "results" / "resume"  # bundles of stopped runs (--bundle), committed
-BUNDLED = ("checkpoint.npz", "history.csv", "segments.json")  # what a bundle holds: all --resume needs
+# what a bundle holds: all --resume needs; case.toml (the text the checkpoint was written for) lets a
+# later rockfrac whose schema has keys added since resume it (rockfrac.case.resolved.same_case)
+BUNDLED = ("checkpoint.npz", "history.csv", "segments.json", "case.toml")
 
 
 def save_bundle(out: Path) -> Path | None:
-    """Pack the run folder's checkpoint, history and segments into RESUME/<folder>.tar.xz (written to a
+    """Pack the run folder's checkpoint, history, segments and case into RESUME/<folder>.tar.xz (written to a
     temporary file and moved into place); None if it has no checkpoint."""
     if not (out / BUNDLED[0]).exists():
         return None

@@ -105,6 +105,51 @@ def test_resume_refuses_a_changed_case_or_no_checkpoint(tmp_path):
         run_case(parse_case(d), tmp_path / "none", resume=True)
 
 
+def test_a_checkpoint_written_before_a_key_existed_resumes(tmp_path):
+    """A case.toml written by an older rockfrac lacks the keys added since (here [solver]
+    max_iterations, taken out as if it were new), and its checkpoint's digest is of that text. Read
+    with today's schema it is this case, so the run resumes, bit for bit the uninterrupted one. A case
+    that differs, or a case.toml that is not the checkpoint's text, is still refused."""
+    from rockfrac.output import checkpoint
+
+    d = table1.cse_case("rp", axial_steps=40, axial_displacement=1.2e-3)
+    d["output"] = {"checkpoint_every": 10}
+    case = parse_case(d)
+    run_case(case, tmp_path / "full")
+    cut = tmp_path / "cut"
+
+    def stop(row):
+        if row["step"] == 25:
+            raise Interrupt()
+
+    with pytest.raises(Interrupt):
+        run_case(case, cut, progress=stop)
+    today = (cut / "case.toml").read_text()
+    older = today.replace("max_iterations = 25\n", "")
+    assert older != today and "max_iterations" not in older
+    (cut / "case.toml").write_text(older)
+    with np.load(cut / checkpoint.FILE) as z:  # the checkpoint as the older rockfrac wrote it
+        arrays = {k: z[k] for k in z.files}
+    arrays["meta.case_sha256"] = np.array(checkpoint.text_sha256(older))
+    arrays["meta.payload_sha256"] = np.array(checkpoint._payload_sha256(arrays))
+    np.savez(cut / checkpoint.FILE, **arrays)
+    other = parse_case(dict(d, loading=dict(d["loading"], axial_steps=50)))
+    with pytest.raises(CaseError, match="the case differs"):
+        run_case(other, cut, resume=True)
+    (cut / "case.toml").write_text(older + "# edited\n")  # not the text the checkpoint was written for
+    with pytest.raises(CaseError, match="the case differs"):
+        run_case(case, cut, resume=True)
+    (cut / "case.toml").write_text(older)
+    assert run_case(case, cut, resume=True).result.completed
+    assert (cut / "case.toml").read_text() == today
+    assert "resumed from the checkpoint at step 20" in (cut / "run.log").read_text()
+    a, b = read_csv(tmp_path / "full" / "history.csv"), read_csv(cut / "history.csv")
+    assert a.keys() == b.keys() and len(a["step"]) == len(b["step"]) >= 40
+    for k in a:
+        if a[k].dtype.kind == "f":
+            np.testing.assert_array_equal(a[k], b[k])
+
+
 def test_paraview_series_of_cracked_runs(tmp_path):
     d = table1.ede_case(element="quad4", axial_steps=150)
     d["output"] = {"vtk": True, "vtk_every": 150}

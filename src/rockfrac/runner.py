@@ -15,10 +15,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-import tomli_w
 
 from rockfrac.analytic import penalty_rule, plane_strain_modulus
 from rockfrac.case.build import Built, Distribution, build, mean_cell_size
+from rockfrac.case.resolved import resolved_text, same_case
 from rockfrac.case.schema import Case, load_case
 from rockfrac.elements.cse_groups import CohesiveRP
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
@@ -187,7 +187,7 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
     saved = checkpoint.load(out)  # CaseError if it is not a valid checkpoint
     if saved is None:
         raise CaseError(f"{out}: --resume: no checkpoint here (set [output] checkpoint_every to write them)")
-    if saved.case_sha256 != checkpoint.text_sha256(case_text):
+    if saved.case_sha256 != checkpoint.text_sha256(case_text) and not _written_for(out, saved.case_sha256, case_text):
         raise CaseError(f"{out}: --resume: the case differs from the one the checkpoint was written for "
                         f"({out / 'case.toml'}); resume with the same case")
     position = _position(saved, out)
@@ -238,6 +238,16 @@ def _restore(out: Path, built: Built, case_text: str, rank: int) -> tuple[Positi
     return position, saved.run
 
 
+def _written_for(out: Path, digest: str, case_text: str) -> bool:
+    """Whether out/case.toml is the text the checkpoint was written for (``digest``) and, read with
+    today's schema, this case (a key added since then, at its default, is the same case)."""
+    try:
+        written = (out / "case.toml").read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    return checkpoint.text_sha256(written) == digest and same_case(written, case_text)
+
+
 def _position(saved: checkpoint.Saved, where: Path) -> Position:
     """The stepping position a checkpoint holds (CaseError if a field is missing)."""
     try:
@@ -272,7 +282,7 @@ def run_case(case: Case | str | Path, out: str | Path, progress: Callable[[dict]
     model = built.model
     lead = distribution is None or distribution.rank == 0  # the rank that writes
     history = make_history(built, label)
-    case_text = tomli_w.dumps(built.case.model_dump(mode="json", exclude_none=True))  # the resolved case
+    case_text = resolved_text(built.case)
     failed = None
     if lead:
         try:

@@ -106,6 +106,14 @@ def test_a_two_cycle_of_plain_newton_is_broken_by_the_elimination():
     r = model_of().assemble(res.u, res.u, np.zeros(6)).residual
     assert np.abs(r).max() <= 1e-8  # the whole system's equilibrium
     assert res.u[0] == pytest.approx(A, abs=1e-6)  # the root, moved by the weak coupling
+    from rockfrac.solve.stepping import _log_iterations
+
+    lines: list[str] = []
+    _log_iterations(lines.append, "s", 1, res)  # run.log says which iterates came from a local solve
+    local = [ln for ln in lines if "local solve" in ln]
+    assert res.eliminated_unknowns == [1] * len(res.eliminated)
+    assert [int(ln.split(" it ")[1].split(":")[0]) for ln in local] == [e + 1 for e in res.eliminated]
+    assert local[0].endswith("after a local solve of 1 unknown (elimination)")
 
 
 def test_the_option_reaches_newton_and_a_run_that_never_stalls_is_unchanged(run):

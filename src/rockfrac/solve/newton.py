@@ -97,6 +97,7 @@ class NewtonResult:
     interrupted: bool = False  # ended by options.should_stop (not converged, nothing wrong)
     switched: list[int] = field(default_factory=list)  # points whose state switched at each iterate (active set)
     eliminated: list[int] = field(default_factory=list)  # iterations that were a local solve (elimination)
+    eliminated_unknowns: list[int] = field(default_factory=list)  # the unknowns each of them solved for
 
     @property
     def switching_iterations(self) -> int:
@@ -284,6 +285,7 @@ def newton_step(
             local = eliminate(model, u, u_n, f_ext, asm)
             if local is not None:
                 result.eliminated.append(it)
+                result.eliminated_unknowns.append(int(local.unknowns.size))
                 last_du = local.u - u
                 u, pending = local.u, local.assembled
                 result.iterations = it + 1

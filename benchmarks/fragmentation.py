@@ -131,12 +131,15 @@ def run_key(rec: dict) -> str:
 
 def solver_label(rec: dict) -> str:
     """The linear solver a run used: PARDISO unchecked before its solves were checked (rows without
-    the log's solver lines), checked, or checked and then SuperLU once an inaccurate solve was retried."""
+    the log's solver lines), checked, or checked and then the backends that took over (in the order
+    they did, over the run's segments): PARDISO without matching, SuperLU."""
     lines = rec.get("solver")
     if lines is None:
         return "PARDISO, unchecked"
-    if any("solved from then on" in ln for ln in lines):
-        return "PARDISO, then SuperLU"
+    took = [ln.rsplit("; ", 1)[-1] for ln in lines if ln.endswith("solved from then on")]
+    if took:
+        names = ["PARDISO without matching" if t.startswith("pardiso without matching") else "SuperLU" for t in took]
+        return "PARDISO, then " + ", then ".join(names)
     return "PARDISO, checked" if lines and lines[0].startswith("pardiso, checked") else lines[0].split(" ([solver]")[0]
 
 
@@ -266,11 +269,11 @@ def main() -> None:
         if stopped:
             break
         for steps in args.steps:
-            d, name, eta = variant_case(base, args, variant, steps, visc)
+            d, folder, eta = variant_case(base, args, variant, steps, visc)
             loaded = d["stages"][0]["displacement"]["load_top" if args.specimen == "disc" else "top"]
             aug = args.augmentation if variant.startswith("rp") else None
             pen = args.penalty if variant.startswith("ep") else None
-            out = runs / name
+            out = runs / folder
             if args.resume and restore_bundle(out):
                 print(f"{out.name}: unpacked {RESUME / (out.name + '.tar.xz')}", flush=True)
             resume = args.resume and (out / checkpoint.FILE).exists()

@@ -39,6 +39,7 @@ class Assembled:
     n_switched: int
     message: str = ""
     local_residual: float = 0.0
+    own: sp.csr_matrix | None = None  # an MPI rank's: its own elements' tangent on its local dofs (unreduced)
 
 
 @dataclass

@@ -109,6 +109,30 @@ def system(built, comm, u: np.ndarray) -> dict:
     return out
 
 
+def elimination(built, comm) -> dict:
+    """One local solve (rockfrac.solve.elimination) from the virgin state with two displacement dofs
+    owned by two ranks moved by 1e-6 m: the whole vectors before and
+    after, the unknowns solved for and the local residual's norm before and after."""
+    from rockfrac.solve.elimination import eliminate
+
+    model, lay = built.model, built.model.layout
+    model.set_dirichlet(built.stages[0].dirichlet)
+    model.begin_step()
+    free = model.free[model.free < model.n_u]
+    ghosts = model.global_dofs(free[~lay.owned_mask[free]])  # free displacements held here, owned elsewhere
+    mine = model.global_dofs(free[lay.owned_mask[free]])
+    # the first rank with a ghost: that ghost, owned by another rank, and its own first free dof
+    dofs = next((int(g[0]), int(m[0])) for g, m in comm.allgather((ghosts, mine)) if g.size)
+    whole = np.zeros(lay.n)
+    whole[list(dofs)] = 1e-6
+    u = whole[model.global_dofs(np.arange(model.n_dofs))]
+    zero = np.zeros(model.n_dofs)
+    got = eliminate(model, u, zero, zero, model.assemble(u, zero, zero))
+    assert got is not None
+    return {"dofs": np.array(dofs), "u_before": whole, "u_after": lay.gather(got.u), "unknowns": got.unknowns,
+            "before": np.array(got.before), "after": np.array(got.after)}
+
+
 def histories(cases: dict, comm, case_file: str) -> dict:
     out = {}
     for name, data in cases.items():
@@ -188,6 +212,8 @@ def main() -> None:
             built = build_distributed(parse_case(data, case_file), comm, case_file)
             if task == "traffic":
                 result = traffic(built, comm)
+            elif task == "elimination":
+                result = elimination(built, comm)
             else:
                 result = history(built, comm) if task.startswith("history") else system(built, comm, u)
         except CaseError as err:

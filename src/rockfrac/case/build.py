@@ -166,9 +166,6 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     distribution: build one MPI rank's model on its piece of the mesh, its groups holding the
     elements of its part only (rank 0 makes the whole mesh and every rank's share).
     """
-    if distribution is not None and case.solver.elimination:  # every rank raises it
-        raise CaseError(f"{path}: [solver] elimination = true runs on one process only: on MPI ranks the "
-                        "stalled unknowns may lie on several of them; run it without mpiexec, or without elimination")
     share: Share | None = None
     if distribution is None:
         case = resolve(case, path)

@@ -57,7 +57,7 @@ class SolverSection(_Section):
     elimination: bool | None = Field(None, description="true: a Newton iteration that has stalled with its residual "
                                      "on a few unknowns (a point where the traction law bends on a scale below the "
                                      "corrections) solves those unknowns alone, every other held, then goes on "
-                                     "(serial runs only); false or unset: off")
+                                     "(on MPI ranks too); false or unset: off")
     fallback: Literal["none", "implex"] = Field(
         "none", description="when a step fails at min_step: 'none' stops the run there (cleanly); 'implex' "
         "switches the EP cohesive surfaces to IMPL-EX integration for the rest of the run (logged) and goes on")

@@ -212,7 +212,7 @@ class DistributedModel(Model):
         mat.assemble()
         return Assembled(f_int - f_ext, f_int, DistributedMatrix(mat, self.layout),
                          all(v[0] for v in verdicts), sum(v[1] for v in verdicts),
-                         "; ".join(v[3] for v in verdicts if v[3]), max(v[2] for v in verdicts))
+                         "; ".join(v[3] for v in verdicts if v[3]), max(v[2] for v in verdicts), own=local.matrix)
 
     def apply_dirichlet(self, a):
         """Zero the prescribed rows and columns of the distributed tangent, unit diagonal."""

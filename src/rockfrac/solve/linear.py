@@ -163,9 +163,11 @@ class Pardiso(_Backend):
     (benchmarks/README.md, "Serial path for small systems").
 
     ``matching = False``: an unsymmetric matrix is factorized without MKL's default weighted matching
-    and scaling (iparm(11) = iparm(13) = 0, every other control MKL's default). On saddle points with loops of RP multipliers round every node the matching perturbed
-    700-900 pivots (residuals up to 1) and cost 2.4x the factorization; without it 60-430 pivots,
-    residuals within 1e-6 after refinement (benchmarks/README.md, "PARDISO without matching").
+    and scaling (iparm(11) = iparm(13) = 0, every other control MKL's default). On the grains' RP
+    saddle points with loops of multipliers round every node the matching perturbed 650-880 pivots
+    (residuals up to 11) and cost 2.4x the refactorization; without it 60-430 pivots, every residual
+    within 1e-6 (benchmarks/README.md, "PARDISO without matching"). On the paper's rigid RP
+    saddle point the matching is the better: no pivot perturbed.
     """
 
     name = "pardiso"

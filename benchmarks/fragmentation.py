@@ -337,6 +337,7 @@ def main() -> None:
         label = v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control"
         label += f", r = {rec['augmentation']:g} Pa/m" if rec.get("augmentation") else ""
         label += f", kn = {rec['penalty']:g} Pa/m" if rec.get("penalty") else ""
+        label += ", elimination" if rec.get("elimination") else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

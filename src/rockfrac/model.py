@@ -108,6 +108,12 @@ class Model:
         """The whole model's numbers of dofs of the model's numbering (serially the same)."""
         return np.asarray(dofs, dtype=np.int64)
 
+    def held_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(the model's numbers of those of the whole model's ``dofs`` its vectors hold, where they are
+        among ``dofs``): serially all of them; an MPI rank's local ones (:meth:`global_dofs` back)."""
+        dofs = np.asarray(dofs, dtype=np.int64)
+        return dofs, np.ones(dofs.shape, dtype=bool)
+
     def whole_dofs(self, dofs: np.ndarray) -> np.ndarray:
         """The whole model's numbers of dofs of the model's mesh (serially the same; an MPI rank's:
         of its piece of the mesh)."""

@@ -105,6 +105,9 @@ class DistributedModel(Model):
     def global_dofs(self, dofs: np.ndarray) -> np.ndarray:
         return self.layout.numbering.global_(dofs)
 
+    def held_dofs(self, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.layout.numbering.local_part(dofs)
+
     def whole_dofs(self, dofs: np.ndarray) -> np.ndarray:
         return self.piece.to_global(dofs)
 

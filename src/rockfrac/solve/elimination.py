@@ -92,13 +92,8 @@ class _Unknowns:
                             model.dot(residual, residual))
         if self.dofs is None:
             return
-        number = model.global_dofs(np.arange(model.n_dofs))
-        order = np.argsort(number)
-        at = np.searchsorted(number, self.dofs, sorter=order)
-        at = np.minimum(at, number.shape[0] - 1)
-        present = number[order[at]] == self.dofs
-        self.held = present  # which of the unknowns this rank holds (owned or ghost)
-        self.local = order[at[present]]  # their local entries
+        # their local entries, and which of them this rank holds (owned or ghost)
+        self.local, self.held = model.held_dofs(self.dofs)
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """x at the unknowns (the whole model's values: on a rank, each from its owner)."""

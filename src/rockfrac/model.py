@@ -11,6 +11,7 @@ import scipy.sparse as sp
 
 from rockfrac.compiled import kernel
 from rockfrac.elements.base import ElementGroup
+from rockfrac.fem.anderson import AndersonMixing
 from rockfrac.fem.assembly import Pattern, scatter_matrix, scatter_vector
 
 
@@ -26,6 +27,9 @@ def serial_dot(x: np.ndarray, y: np.ndarray) -> float:
     for i in range(x.shape[0]):
         s += x[i] * y[i]
     return s
+
+
+MIXING_DEPTH = 3  # the earlier updates of a step the nested multipliers' next update combines (Anderson)
 
 
 @dataclass
@@ -61,6 +65,7 @@ class Model:
     _const_force: np.ndarray | None = field(init=False, default=None, repr=False)
     _bc_hit: np.ndarray = field(init=False, repr=False)
     _bc_diag: np.ndarray = field(init=False, repr=False)
+    _mixing: AndersonMixing | None = field(init=False, default=None, repr=False)  # nested multipliers' updates
 
     def number_extras(self) -> int:
         """Number the groups' extra unknowns after the displacements; returns the number of dofs."""
@@ -200,6 +205,8 @@ class Model:
     def begin_step(self) -> None:
         for g in self.groups:
             g.begin_step()
+        if self._mixing is not None:
+            self._mixing.reset()
 
     def set_step(self, mode: str, size: float) -> None:
         """Tell the groups the control and size of the step about to be solved."""
@@ -218,6 +225,42 @@ class Model:
     def commit(self) -> None:
         for g in self.groups:
             g.commit()
+
+    def _held(self) -> list[tuple[ElementGroup, tuple[np.ndarray, np.ndarray, np.ndarray]]]:
+        return [(g, h) for g in self.groups if (h := g.held_multipliers()) is not None]
+
+    def multiplier_gap(self) -> float:
+        """The Euclidean norm [N] of the residual w (T - lambda) of the constraint rows held outside the
+        unknowns (the nested RP surfaces', on every rank), at the last assembly; 0 without such rows."""
+        total = sum(float(np.einsum("p,pi,pi->", w * w, t - lam, t - lam)) for _, (lam, t, w) in self._held())
+        return math.sqrt(self.reduce_sum(total))
+
+    def holds_multipliers(self) -> bool:
+        """True if a group holds multipliers outside the unknowns (a nested RP surface)."""
+        return bool(self._held())
+
+    def constrain_all(self, on: bool) -> None:
+        """Hold, or stop holding, every point of the nested RP surfaces constrained
+        (:meth:`ElementGroup.constrain_all`)."""
+        for g in self.groups:
+            g.constrain_all(on)
+
+    def augment(self) -> None:
+        """Move the nested RP surfaces' multipliers towards their last tractions: lambda := T, Anderson
+        mixed with the step's earlier updates (:mod:`rockfrac.fem.anderson`)."""
+        held = self._held()
+        if not held:
+            return
+        lam = np.concatenate([h[0].ravel() for _, h in held])
+        t = np.concatenate([h[1].ravel() for _, h in held])
+        w2 = np.concatenate([np.repeat(h[2] * h[2], h[0].shape[1]) for _, h in held])
+        if self._mixing is None:
+            self._mixing = AndersonMixing(MIXING_DEPTH, self.reduce_sum)
+        new = self._mixing.next(lam, t, w2)
+        at = 0
+        for g, (lam_g, _, _) in held:
+            g.hold_multipliers(new[at:at + lam_g.size].reshape(lam_g.shape))
+            at += lam_g.size
 
     def enrichment_version(self) -> tuple[int, ...] | None:
         """The groups' enrichment counters (None: no group has enriched unknowns); a change means the

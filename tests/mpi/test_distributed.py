@@ -33,6 +33,7 @@ from rockfrac.case.schema import parse_case  # noqa: E402
 from rockfrac.runner import engine_options  # noqa: E402
 from rockfrac.solve.linear import make_solver  # noqa: E402
 from rockfrac.solve.stepping import run_stages  # noqa: E402
+from rockfrac.studies import table1  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -913,3 +914,22 @@ def test_a_paraview_piece_and_a_checkpoint_send_no_whole_vector(tmp_path):
     assert int(got["piece_bytes"]) < 0.1 * whole, (int(got["piece_bytes"]), whole)
     assert int(got["checkpoint_bytes"]) < 0.1 * whole, (int(got["checkpoint_bytes"]), whole)
     assert 0 < int(got["asked"]) == 2 * int(got["piece_points"])
+
+
+def test_nested_multipliers_on_ranks_are_the_serial_ones(tmp_path):
+    """[cohesive] multipliers = 'nested' on 2 ranks: the multiplier rows' norm and the Anderson mixing
+    of their updates sum over the ranks, so each rank takes the serial iterations. The paper's RP case
+    through its activation (the rigid prediction on ranks) and softening, and RP on every edge of a
+    block (loops of pairs round the nodes cut by the partition), no multiplier unknowns numbered."""
+    every = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
+             "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4},
+             "cohesive": dict(table1.CSE_LAW, form="rp", where="all", multipliers="nested")}
+    paper = paper_case("rp", axial_steps=60, axial_displacement=1.5e-3)
+    paper["cohesive"]["multipliers"] = "nested"
+    for name, case in (("paper", paper), ("every", every)):
+        (tmp_path / name).mkdir()
+        par, ser = mpirun(2, "history", case, tmp_path / name), serial_history(case)
+        assert "error" not in par and par["lam"].shape == ser["lam"].shape, name
+        np.testing.assert_array_equal(par["iterations"], ser["iterations"])
+        np.testing.assert_allclose(par["u"], ser["u"], rtol=0, atol=1e-10 * np.abs(ser["u"]).max())
+    assert ser["u"].shape[1] == 2 * 4 * 4 * 6  # the every-edge block's displacements, nothing else

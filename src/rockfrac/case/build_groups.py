@@ -13,6 +13,7 @@ from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
+from rockfrac.elements.cse_nested import CohesiveRPNested
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
 from rockfrac.elements.ede_cracks import cut_along, cut_by_plane
 from rockfrac.elements.ede_enrichment import EnrichmentRegistry
@@ -116,6 +117,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
     if section.form is CohesiveForm.ep:
         return [CohesiveEP(points, law, name=name, integration=section.integration,
                            viscosity=section.viscosity or 0.0)]
+    if section.multipliers == "nested":  # no multiplier unknowns: no junction term (rockfrac.elements.cse_nested)
+        return [CohesiveRPNested(points, law, section.augmentation, name=name, viscosity=section.viscosity or 0.0)]
     if junction is None:
         junction = at_junctions(mesh, points.minus)
     return [CohesiveRP(points, law, section.augmentation, junction=junction, name=name,

@@ -56,6 +56,11 @@ class CohesiveCommon(_Section):
     kn: Stiffness | None = Field(None, description="EP only: normal penalty stiffness [Pa/m]")
     kt: Stiffness | None = Field(None, description="EP only: tangential penalty stiffness [Pa/m]")
     augmentation: Stiffness | None = Field(None, description="RP only: augmentation r [Pa/m]")
+    multipliers: Literal["unknowns", "nested"] | None = Field(
+        None, description="RP only: how the multipliers are solved: 'unknowns' (the paper's, with the "
+        "displacements in one saddle-point Newton; the default) or 'nested' (held while Newton solves the "
+        "displacements, then updated to the tractions until the rigid constraint is met: Uzawa, Simo & Laursen "
+        "1992; no saddle point, a few updates a step where r is well above E / cell size)")
     integration: Literal["implicit", "implex"] = Field(
         "implicit", description="EP only: 'implicit' (the law's return at the end of each step) or 'implex' "
         "(Oliver et al. 2008: equilibrium with the plastic jump extrapolated from the last two steps; one "
@@ -66,6 +71,11 @@ class CohesiveCommon(_Section):
                                     "the augmentation as stiffness), for load steps through snap-backs; its "
                                     "extra dissipation is the column D_viscous (default: none, the "
                                     "rate-independent law)")
+
+    @property
+    def multiplier_unknowns(self) -> bool:
+        """True if the set's multipliers are unknowns of the model (RP, not nested)."""
+        return self.form is CohesiveForm.rp and self.multipliers != "nested"
 
     @model_validator(mode="after")
     def _placement(self) -> CohesiveCommon:
@@ -86,9 +96,9 @@ class CohesiveCommon(_Section):
             missing = [k for k in ("kn", "kt") if getattr(self, k) is None]
             if missing:
                 raise ValueError(f"form = 'ep' needs {', '.join(missing)} (penalty stiffness, Pa/m)")
-            extra = [k for k in ("augmentation",) if getattr(self, k) is not None]
+            extra = [k for k in ("augmentation", "multipliers") if getattr(self, k) is not None]
             if extra:
-                raise ValueError("augmentation only applies to form = 'rp'")
+                raise ValueError(f"{', '.join(extra)} only appl{'ies' if len(extra) == 1 else 'y'} to form = 'rp'")
             if self.viscosity is not None and self.integration != "implicit":
                 raise ValueError("viscosity regularises the implicit update; integration = 'implex' is explicit "
                                  "already: give one of them")

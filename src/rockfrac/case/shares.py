@@ -159,7 +159,7 @@ def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list,
         ids = piece.place.nodes  # type: ignore[union-attr]
         coh = []
         for k, (section, _, p, where, junction) in enumerate(sets):
-            rp = section.form is CohesiveForm.rp
+            rp = section.multiplier_unknowns  # numbered over the ranks
             coh.append(CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
                                      np.bincount(where, minlength=n_ranks) if rp else None,
                                      where if rp and enrichment is not None else None,

@@ -146,6 +146,22 @@ class ElementGroup(ABC):
     def commit(self) -> None:
         """Make the trial state the committed one (after a converged step)."""
 
+    # -- multipliers held outside the unknowns (nested augmented Lagrangian) ------------------
+    def held_multipliers(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """(lambda, T, w): the multipliers the group holds outside the unknowns (n_pts, dim), global frame
+        [Pa], the tractions of its last evaluation that they must equal, and the points' weights
+        (n_pts,) [m, or m^2 in 3D] (a nested RP surface, :mod:`rockfrac.elements.cse_nested`); None for a
+        group without."""
+        return None
+
+    def constrain_all(self, on: bool) -> None:
+        """While on, a group with held multipliers holds every point constrained (its linear response
+        before anything yields); nothing for the others."""
+
+    def hold_multipliers(self, lam: np.ndarray) -> None:
+        """Set the held multipliers (n_pts, dim) [Pa] (groups with :meth:`held_multipliers` only)."""
+        raise NotImplementedError(f"{type(self).__name__} holds no multipliers")
+
     def checkpoint_state(self) -> dict[str, np.ndarray]:
         """The committed state as named arrays (copies)."""
         return {a: np.array(getattr(self, a)) for a in self.checkpoint_attrs}

@@ -37,11 +37,45 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
     rhs = dlam * loads.df - a @ lift
     rhs[dofs_d] = dlam * loads.dd
     try:
-        du = solver.factorize(model.apply_dirichlet(a)).solve(rhs)
+        du: np.ndarray | None = solver.factorize(model.apply_dirichlet(a)).solve(rhs)
+        if du is not None and model.holds_multipliers() and model.reduce_all_finite(du):
+            du = _rigid_response(model, u, du, lam + dlam, loads, solver)
     except RuntimeError:  # a singular tangent: no prediction, the step runs as it is
         return None
-    if not model.reduce_all_finite(du):
+    if du is None or not model.reduce_all_finite(du):
         return None
     found = [s for g in pending if (s := g.activation(u, du)) is not None]
     first = model.reduce_min(min(found) if found else np.inf)
     return first if np.isfinite(first) else None
+
+
+RIGID_UPDATES = 30  # the most multiplier updates of the rigid prediction
+
+
+def _rigid_response(model: Model, u: np.ndarray, du: np.ndarray, lam: float, loads: Loads,
+                    solver: LinearSolver) -> np.ndarray | None:
+    """The response du of nested RP surfaces held rigid to the load increment: the penalty response du
+    (multipliers held), then multiplier updates (``Model.augment``), each followed by a correction with
+    the tangent (every point held constrained: the problem is linear, one Newton correction solves it;
+    factorized anew each time, since a distributed model assembles into its last factor's matrix),
+    until the multiplier rows are within round-off of the forces (1e-10);
+    None if they are not after RIGID_UPDATES updates. The groups are left with the predicted
+    multipliers, which their ``activation`` reads; the step's Newton starts afresh."""
+    dofs_d = model.dirichlet
+    f_ext = loads.forces(lam)
+    scale = max(model.norm(f_ext, "free"), 1.0)
+    model.constrain_all(True)
+    try:
+        for _ in range(RIGID_UPDATES):
+            asm = model.assemble(u + du, u, f_ext)
+            scale = max(scale, model.norm(asm.residual, "dirichlet"))
+            if model.multiplier_gap() <= 1e-10 * scale:
+                return du
+            model.augment()
+            asm = model.assemble(u + du, u, f_ext)
+            r = asm.residual.copy()
+            r[dofs_d] = 0.0
+            du = du - solver.factorize(model.apply_dirichlet(asm.matrix)).solve(r)
+        return None
+    finally:
+        model.constrain_all(False)

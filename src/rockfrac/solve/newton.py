@@ -29,6 +29,7 @@ a serial compiled loop, or sums over the ranks of a distributed model.
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -98,6 +99,8 @@ class NewtonResult:
     switched: list[int] = field(default_factory=list)  # points whose state switched at each iterate (active set)
     eliminated: list[int] = field(default_factory=list)  # iterations that were a local solve (elimination)
     eliminated_unknowns: list[int] = field(default_factory=list)  # the unknowns each of them solved for
+    augmented: list[int] = field(default_factory=list)  # iterations whose iterate updated nested multipliers
+    gaps: list[float] = field(default_factory=list)  # the relative multiplier gap each of those updates closed
 
     @property
     def switching_iterations(self) -> int:
@@ -111,6 +114,9 @@ class NewtonResult:
 # held shut on a loop (~1e-12 relative; an opening mechanism gives 1e-6 and more)
 RIGID_SLOPE = 1e-12
 MAX_PATH_LOAD = 1.0
+
+MAX_UPDATES = 30  # the most updates of nested multipliers in a step (each followed by a Newton solve)
+INEXACT = 0.1  # nested multipliers are updated once the residual is this far below their rows' (inexact Uzawa)
 
 ROUNDOFF = 1e-4  # at an iterate that switched points, a residual this far below its tolerance converges
 
@@ -208,12 +214,16 @@ def newton_step(
     pending = None  # the assembly at u made by the line search
     rigid = False  # the last correction could not move g (it pushed the load by control.predictor)
     tried = -3  # the iteration of the last elimination tried
+    nested = model.holds_multipliers()  # multipliers updated between solves (rockfrac.elements.cse_nested)
+
+    def reference(asm, f_ext) -> float:
+        return max(model.norm(f_ext, "free"), model.norm(asm.residual, "dirichlet"), options.force_scale)
 
     def relative(asm, f_ext) -> float:
-        ref = max(model.norm(f_ext, "free"), model.norm(asm.residual, "dirichlet"), options.force_scale)
-        return model.norm(asm.residual, "free") / ref
+        return model.norm(asm.residual, "free") / reference(asm, f_ext)
 
-    for it in range(options.max_iterations + 1):
+    limit = options.max_iterations  # the last iteration (each multiplier update grants a solve its own)
+    for it in itertools.count():
         if options.should_stop is not None and options.should_stop():
             result.interrupted = True
             result.message = f"iteration {it}: stop requested"
@@ -243,7 +253,8 @@ def newton_step(
                 g += control.lam_coeff * u_lam
             g_ok = abs(g - control.target) <= control.tolerance or (control.rigid_ok and rigid)
         if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
-                and not model.reduce_any(bool(np.any(mismatch)))):  # on any rank's prescribed dofs
+                and not model.reduce_any(bool(np.any(mismatch)))  # on any rank's prescribed dofs
+                and model.multiplier_gap() <= options.tol_residual * reference(asm, f_ext)):
             # the loads did not change over the step (a held stage): the start is the equilibrium; a
             # Newton correction would be round-off, whose energy norm relative to itself never converges
             result.converged = True
@@ -270,14 +281,32 @@ def newton_step(
                        or (asm.n_switched > 0 and rel <= ROUNDOFF * options.tol_residual)
                        or _returned(result.residuals, result.switched, options.tol_residual)
                        or (asm.n_switched > 0 and bool(unsettled(result.switched))))
-            if (rel <= options.tol_residual and settled and g_ok
-                    and asm.local_residual <= options.tol_residual):
+            held_ok = g_ok and asm.local_residual <= options.tol_residual
+            gap = model.multiplier_gap() / reference(asm, f_ext) if nested and held_ok else 0.0
+            if rel <= options.tol_residual and settled and held_ok and gap <= options.tol_residual:
                 result.converged = True
                 result.iterations = it
                 result.f_int = asm.f_int
                 result.u, result.lam = u, u_lam
                 return result
-        if it == options.max_iterations:
+            if gap > options.tol_residual and ((rel <= options.tol_residual and settled)
+                                               or (rel <= INEXACT * gap and not asm.n_switched)):
+                if len(result.augmented) < MAX_UPDATES:
+                    # nested multipliers: converged with lambda held (or nearly, next to the multiplier
+                    # rows' residual), not yet T = lambda; lambda := T and Newton goes on from this u
+                    # (an iteration without a solve), with max_iterations for its solve at the new lambda
+                    model.augment()
+                    limit = it + options.max_iterations
+                    result.augmented.append(it)
+                    result.gaps.append(gap)
+                    last_du = np.zeros_like(u)
+                    result.iterations = it + 1
+                    continue
+                result.message = (f"iteration {it}: the nested multipliers' rows are at {gap:.2e} after "
+                                  f"{MAX_UPDATES} updates (lambda := T does not converge)")
+                result.u, result.lam = u, u_lam
+                return result
+        if it >= limit:
             break
         if (options.eliminate and (stalled(result.residuals) or _cycle_period(result.residuals))
                 and it - tried >= 3):  # not again before its effect shows (then a cycle ends the step)
@@ -357,7 +386,9 @@ def newton_step(
             u += du
             u[dofs_d] = loads.dirichlet(u_lam)  # exact, no drift from summed increments
         result.iterations = it + 1
+    updates = len(result.augmented)
     result.message = (f"no convergence in {options.max_iterations} iterations (residual {rel:.2e})"
+                      + (f" since update {updates} of the nested multipliers" if updates else "")
                       + unsettled(result.switched))
     result.u, result.lam = u, u_lam
     return result

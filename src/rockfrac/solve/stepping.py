@@ -143,10 +143,13 @@ class StopRun(Exception):
 def _log_iterations(log, name: str, step: int, res: NewtonResult) -> None:
     switched = res.switched + [0] * (len(res.residuals) - len(res.switched))
     local = dict(zip(res.eliminated, res.eliminated_unknowns))  # iterate it + 1 came from a local solve
+    augmented = dict(zip(res.augmented, res.gaps))  # iterate it updated the nested multipliers
     for k, (rr, ee, n) in enumerate(zip(res.residuals, [np.nan] + res.energies, switched)):
         change = f", {points(n)} switched" if k and n else ""
         if k - 1 in local:
             change += f", after a local solve of {local[k - 1]} unknown{'s' if local[k - 1] != 1 else ''} (elimination)"
+        if k in augmented:
+            change += f", multipliers updated (nested: their rows were at {augmented[k]:.3e})"
         log(f"  {name} step {step} it {k}: residual {rr:.3e} energy {ee:.3e}{change}")
 
 

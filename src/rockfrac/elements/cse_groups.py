@@ -385,6 +385,7 @@ class CohesiveRP(_CohesiveGroup):
 
     JUNCTION_EPS = 1e-8
     PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
+    PIN_TOLERANCE = 1e-9  # a held point is let go where F > PIN_TOLERANCE x the law's strength scale
     rigid = True
 
     def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, augmentation: float,
@@ -492,7 +493,7 @@ class CohesiveRP(_CohesiveGroup):
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging iterate's tractions: the step fails on them
                 f = self.law.yield_values(self.trial[self._pinned])
             scale = self.law.scale
-            outside = f > 1e-9 * scale
+            outside = f > self.PIN_TOLERANCE * scale
             if outside.any():
                 idx = np.flatnonzero(self._pinned)[outside]
                 self._pinned[idx] = False

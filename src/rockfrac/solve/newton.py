@@ -16,6 +16,10 @@ round-off, an equilibrium within tolerance the iteration came back to by switchi
 it, or one within tolerance after points switched in most of the last iterations: see newton_step),
 element-level equations of condensed unknowns (the embedded jumps) met to the residual tolerance,
 and, under path control, the constraint met.
+With nested RP multipliers (:mod:`rockfrac.elements.cse_nested`) the multiplier rows, held outside
+the unknowns, must meet the residual tolerance too: an iterate converged with them held (or within a
+tenth of their residual, switching nothing) updates them (``Model.augment``) and the iteration goes
+on from there, each update granting the solve after it max_iterations, at most MAX_UPDATES a step.
 A correction that raises the residual is halved (line search) from the third iteration on.
 With ``eliminate`` (``[solver] elimination``), an iteration that has stalled with its residual on a
 few unknowns solves those alone first (:mod:`rockfrac.solve.elimination`).

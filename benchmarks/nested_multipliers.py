@@ -42,11 +42,11 @@ def paper() -> dict:
 
 
 def every_edge() -> dict:
+    from conftest import EVERY_EDGE
+
     from rockfrac.studies import table1
 
-    return {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
-            "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4},
-            "cohesive": dict(table1.CSE_LAW, form="rp", where="all")}
+    return dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"))
 
 
 def small_grains(folder: Path) -> dict:

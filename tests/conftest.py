@@ -5,6 +5,7 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rockfrac.case.schema import parse_case
@@ -41,6 +42,29 @@ def pressed_then_pulled(nx: int, ny: int) -> dict:
                                                                      "top": {"y": -4e-4}}},
                        {"name": "pull", "steps": 8, "displacement": {"right": {"x": 2e-4}}}],
             "output": {"picture": False, "points": False, "checkpoint_every": 5}}
+
+
+# an elastic 4 x 6 quad specimen, confined and compressed: cohesive surfaces on every edge of it are
+# loops of 4 pairs round each interior node (tests/test_real_meshes.py, tests/test_nested_multipliers.py)
+EVERY_EDGE = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
+              "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4}}
+
+
+def check_tied_every_edge(unsplit: Path, tied: Path, rtol: float, jump: float) -> None:
+    """RP surfaces on every edge of EVERY_EDGE, held constrained (run folder ``tied``): the unsplit
+    specimen's loads (run folder ``unsplit``) to rtol, no jump above ``jump`` [m], and at the junctions
+    the physical tractions sigma . n (least circulation)."""
+    a, b = read_csv(unsplit / "history.csv"), read_csv(tied / "history.csv")
+    p = read_csv(tied / "points.csv")
+    np.testing.assert_allclose(b["F_axial"], a["F_axial"], rtol=rtol)
+    assert np.abs(p["jump_t"]).max() < jump and np.abs(p["jump_n"]).max() < jump
+    assert set(p["state"]) == {"constrained"}
+    last = p["step"] == p["step"].max()
+    horizontal = last & (np.abs(p["angle"]) < 0.1)
+    vertical = last & (np.abs(p["angle"]) > 1.0)
+    np.testing.assert_allclose(p["T_n"][horizontal], -a["F_axial"][-1] / 0.04, rtol=rtol)
+    np.testing.assert_allclose(p["T_n"][vertical], -2e4, rtol=rtol)
+    assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
 
 
 def with_law(case: dict, **law) -> dict:

@@ -3,7 +3,7 @@ without its multiplier unknowns, and the Anderson mixing of their updates."""
 
 import numpy as np
 import pytest
-from conftest import P, TABLE1, THETA, W, paper_case
+from conftest import EVERY_EDGE, P, TABLE1, THETA, W, check_tied_every_edge, paper_case
 
 from rockfrac import analytic
 from rockfrac.case.schema import CaseError, parse_case
@@ -79,23 +79,11 @@ def test_nested_rp_on_every_edge_is_the_unsplit_elastic_solution_with_physical_j
     surfaces: the unsplit elastic response, no jump, and at the junctions the physical tractions
     sigma . n: an update never changes a loop's circulation (its jumps sum to zero), which stays the
     committed one, zero here."""
-    base = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
-            "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4}}
-    run_case(parse_case(base), tmp_path / "a")
-    s = run_case(parse_case(dict(base, cohesive=dict(table1.CSE_LAW, form="rp", where="all",
-                                                       multipliers="nested"))), tmp_path / "b")
+    run_case(parse_case(EVERY_EDGE), tmp_path / "a")
+    s = run_case(parse_case(dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all",
+                                                             multipliers="nested"))), tmp_path / "b")
     assert s.result.completed
-    a, b = read_csv(tmp_path / "a" / "history.csv"), read_csv(tmp_path / "b" / "history.csv")
-    p = read_csv(tmp_path / "b" / "points.csv")
-    np.testing.assert_allclose(b["F_axial"], a["F_axial"], rtol=1e-9)
-    assert np.abs(p["jump_t"]).max() < 1e-15 and np.abs(p["jump_n"]).max() < 1e-15
-    assert set(p["state"]) == {"constrained"}
-    last = p["step"] == p["step"].max()
-    horizontal = last & (np.abs(p["angle"]) < 0.1)
-    vertical = last & (np.abs(p["angle"]) > 1.0)
-    np.testing.assert_allclose(p["T_n"][horizontal], -a["F_axial"][-1] / 0.04, rtol=1e-9)
-    np.testing.assert_allclose(p["T_n"][vertical], -2e4, rtol=1e-9)
-    assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
+    check_tied_every_edge(tmp_path / "a", tmp_path / "b", rtol=1e-9, jump=1e-15)
 
 
 @pytest.mark.parametrize("edit,expected", [

@@ -38,7 +38,7 @@ from rockfrac.studies import table1  # noqa: E402
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE.parent))
-from conftest import paper_case, pressed_then_pulled  # noqa: E402
+from conftest import EVERY_EDGE, paper_case, pressed_then_pulled  # noqa: E402
 
 BRAZILIAN = ROOT / "examples" / "rock_tests" / "brazilian"
 TRIAXIAL = ROOT / "examples" / "rock_tests" / "triaxial"
@@ -921,9 +921,7 @@ def test_nested_multipliers_on_ranks_are_the_serial_ones(tmp_path):
     of their updates sum over the ranks, so each rank takes the serial iterations. The paper's RP case
     through its activation (the rigid prediction on ranks) and softening, and RP on every edge of a
     block (loops of pairs round the nodes cut by the partition), no multiplier unknowns numbered."""
-    every = {"mesh": {"kind": "specimen", "crack": False, "nx": 4, "ny": 6}, "bulk": {"E": 1.5e7, "nu": 0.3},
-             "loading": {"confinement": 2e4, "axial_displacement": 2e-4, "axial_steps": 4},
-             "cohesive": dict(table1.CSE_LAW, form="rp", where="all", multipliers="nested")}
+    every = dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all", multipliers="nested"))
     paper = paper_case("rp", axial_steps=60, axial_displacement=1.5e-3)
     paper["cohesive"]["multipliers"] = "nested"
     for name, case in (("paper", paper), ("every", every)):

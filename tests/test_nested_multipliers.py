@@ -124,3 +124,19 @@ def test_nested_rp_joints_in_3d_slide_as_the_saddle_points_do(tmp_path):
     np.testing.assert_array_equal(b["n_plastic"], a["n_plastic"])
     for q in ("R_top_x", "u_top_z", "D_dissipated"):
         np.testing.assert_allclose(b[q], a[q], rtol=0, atol=1e-7 * np.abs(a[q]).max())
+
+
+def test_multiplier_updates_that_do_not_converge_end_the_step_and_say_so(tmp_path, monkeypatch):
+    """With too few updates allowed (2 a step) the paper's nested RP case cannot meet its multiplier
+    rows (its r is E / h: each update closes them by about half): the first step fails naming them,
+    the stepping cuts back to min_step and the run stops cleanly, saying why in run.log."""
+    from rockfrac.solve import newton
+
+    monkeypatch.setattr(newton, "MAX_UPDATES", 2)
+    case = paper_case("rp", axial_displacement=3e-4, axial_steps=10)
+    case["cohesive"]["multipliers"] = "nested"
+    s = run_case(parse_case(case), tmp_path / "out")
+    assert not s.result.completed
+    assert "the nested multipliers' rows are at" in s.result.message and "after 2 updates" in s.result.message
+    log = (tmp_path / "out" / "run.log").read_text()
+    assert "load increment below min_step" in log and "after 2 updates (lambda := T does not converge)" in log

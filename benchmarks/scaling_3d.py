@@ -19,7 +19,8 @@ homogeneous, so every mesh must give the material-point driver's axial stress
 layers=4) with cohesive joints on the three planes between them ([cohesive] where = 'boundaries'),
 elasto-plastic (penalty kn = kt = 1e11 Pa/m) or rigid-plastic (augmented multipliers: a saddle-point
 tangent), under the top pressure: uniaxial stress, so u_z = -p z / E - (joints below) p / kn (EP;
-RP: the unsplit box's -p z / E) at every node, the table's error.
+RP: the unsplit box's -p z / E) at every node, the table's error. ``joints-rp-nested``: the RP joints
+with ``[cohesive] multipliers = "nested"`` (no multiplier unknowns; benchmarks/nested_multipliers.py).
 
 Backends: ``pardiso`` (MKL, the default 'auto') and ``gmres-amg`` (GMRES(60) with pyamg's smoothed
 aggregation on 3 x 3 nodal blocks and the six rigid-body modes, relative residual 1e-11).
@@ -128,7 +129,8 @@ def child_run(element: str, n: int, backend: str, folder: Path, problem: str = "
         if joints:
             form = problem.split("-")[1]
             spec["cohesive"] = {"where": "boundaries", "form": form, **JOINT_LAW,
-                                **({"kn": KN, "kt": KN} if form == "ep" else {})}
+                                **({"kn": KN, "kt": KN} if form == "ep" else {}),
+                                **({"multipliers": "nested"} if problem.endswith("-nested") else {})}
     case = parse_case(spec, "box")
     t0 = time.perf_counter()
     built = build(case)
@@ -235,7 +237,7 @@ def main() -> None:
     p.add_argument("--backends", nargs="+", default=["pardiso", "gmres-amg"])
     p.add_argument("--timeout", type=float, default=1800.0)
     p.add_argument("--quick", action="store_true")
-    p.add_argument("--problem", choices=["elastic", "plastic", "joints-ep", "joints-rp"], default="elastic")
+    p.add_argument("--problem", choices=["elastic", "plastic", "joints-ep", "joints-rp", "joints-rp-nested"], default="elastic")
     p.add_argument("--max-direct", type=float, default=float("inf"),
                    help="run pardiso only up to this many target dofs (its 3D factorization grows fastest)")
     p.add_argument("--child", nargs=4, metavar=("ELEMENT", "N", "BACKEND", "PROBLEM"))

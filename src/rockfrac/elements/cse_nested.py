@@ -11,13 +11,15 @@ solves eq. (34), the surfaces' jumps are their plastic jumps (rigid below the yi
 the multipliers among the unknowns.
 
 Why: no multiplier unknowns, so no saddle point, no statically indeterminate circulation round a
-junction (no perturbed-Lagrangian term there, no redundant multiplier rows on supports), a tangent of
-the displacements alone, and the active set of a penalty surface, which a Newton iteration does not
-flip between lambda's overshoot and its return. The price: each update removes the elastic jump
-(T - lambda) / r only down to the part the surroundings give back, a factor of about
-k / (k + r) per update (k the bulk's stiffness seen by the pair, ~E / cell size): with r >> k a few
-updates a step; with r ~ k or below, many (Newton's iteration limit then ends the step, says so, and
-the step is cut).
+junction (no perturbed-Lagrangian term there, no redundant multiplier rows on supports), and a tangent
+of the displacements alone, which a direct solver factorizes faster (3D RP joints: 0.63 of the saddle
+point's time, benchmarks/README.md, "Nested multipliers"). The price: each update removes the elastic
+jump (T - lambda) / r only down to the part the surroundings give back, a factor of about k / (k + r)
+per update (k the bulk's stiffness seen by the pair, ~E / cell size), and much less while points
+switch: with r >> k and a settled active set a few updates a step, else many (the paper's case: 2.7
+times the saddle point's iterations). Where plastic pairs round a split node cannot flow (a kinked
+boundary held by constrained pairs), the rows do not close, and the step fails after MAX_UPDATES
+(:mod:`rockfrac.solve.newton`) saying so.
 """
 
 from __future__ import annotations

@@ -922,7 +922,7 @@ def test_nested_multipliers_on_ranks_are_the_serial_ones(tmp_path):
     through its activation (the rigid prediction on ranks) and softening, and RP on every edge of a
     block (loops of pairs round the nodes cut by the partition), no multiplier unknowns numbered."""
     every = dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all", multipliers="nested"))
-    paper = paper_case("rp", axial_steps=60, axial_displacement=1.5e-3)
+    paper = paper_case("rp", axial_steps=30, axial_displacement=0.75e-3)  # activation at step 17, then softening
     paper["cohesive"]["multipliers"] = "nested"
     for name, case in (("paper", paper), ("every", every)):
         (tmp_path / name).mkdir()

@@ -258,7 +258,7 @@ def newton_step(
             g_ok = abs(g - control.target) <= control.tolerance or (control.rigid_ok and rigid)
         if (it == 0 and control is None and rel <= options.tol_residual and asm.local_residual <= options.tol_residual
                 and not model.reduce_any(bool(np.any(mismatch)))  # on any rank's prescribed dofs
-                and model.multiplier_gap() <= options.tol_residual * reference(asm, f_ext)):
+                and (not nested or model.multiplier_gap() <= options.tol_residual * reference(asm, f_ext))):
             # the loads did not change over the step (a held stage): the start is the equilibrium; a
             # Newton correction would be round-off, whose energy norm relative to itself never converges
             result.converged = True

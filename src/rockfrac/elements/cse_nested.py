@@ -18,8 +18,8 @@ jump (T - lambda) / r only down to the part the surroundings give back, a factor
 per update (k the bulk's stiffness seen by the pair, ~E / cell size), and much less while points
 switch: with r >> k and a settled active set a few updates a step, else many (the paper's case: 2.7
 times the saddle point's iterations). Where plastic pairs round a split node cannot flow (a kinked
-boundary held by constrained pairs), the rows do not close, and the step fails after MAX_UPDATES
-(:mod:`rockfrac.solve.newton`) saying so.
+boundary held by constrained pairs, or a ring whose other pairs are rigid), the rows do not close, and
+the step fails after MAX_UPDATES (:mod:`rockfrac.solve.newton`) saying so.
 """
 
 from __future__ import annotations

@@ -48,7 +48,14 @@ def test_opening_control_traces_the_snap_back_of_the_bar(tmp_path):
     # while the crack is rigid the opening cannot move: each step is a load step of 1/steps
     assert rigid.sum() > 40 and np.all(opening[rigid] == pytest.approx(0.0, abs=1e-15))
     lam = h["load_factor"]
-    np.testing.assert_allclose(np.diff(lam[rigid]), 1.0 / data["stages"][0]["steps"], rtol=1e-9)
+    rigid_steps = np.diff(lam[rigid])
+    np.testing.assert_allclose(rigid_steps[:-1], 1.0 / data["stages"][0]["steps"], rtol=1e-9)
+    # the path step in which the crack first yields is ended where it does: its peak is a step, at the
+    # strength times the width (to 1e-5: the one-cell-wide bar's crack points carry a shear of 0.2 % of it)
+    assert 0.0 < rigid_steps[-1] < 1.0 / data["stages"][0]["steps"]
+    assert h["control"][rigid][-1] == "load" and np.flatnonzero(rigid)[-1] == np.flatnonzero(pl)[0] - 1
+    assert h["R_top_y"][rigid][-1] == pytest.approx(c["chi_p"] * width, rel=1e-5)
+    assert h["R_top_y"].max() <= h["R_top_y"][rigid][-1] * (1 + 1e-9)
     # once open, every step prescribes exactly the increment of opening (the last lands on lam = 1)
     np.testing.assert_allclose(np.diff(opening[pl])[:-1], data["stages"][0]["path_increment"], rtol=1e-7)
     # the closed form through the snap-back, down to its turning point
@@ -73,9 +80,14 @@ def test_arc_length_passes_the_peak_of_a_force_controlled_bar(tmp_path):
     # the arc length goes over it and down the softening branch to the stop
     s, h = run(data, tmp_path / "arc")
     assert s.result.completed and "fell below 0.3" in s.result.message
-    assert h["control"][0] == "load" and set(h["control"][1:]) == {"path"}
+    later = list(h["control"][1:])  # path steps, but for the one that ends where the crack first yields
+    assert h["control"][0] == "load" and later.count("load") == 1 and set(later) == {"path", "load"}
     sigma, u = h["load_factor"] * end, h["u_top_y"]
     assert h["load_factor"].max() <= chi / end * (1 + 1e-9)
+    # the path step that first yields is ended where the crack activates: the peak is a step, on the closed form
+    landing = int(np.flatnonzero(h["n_plastic"] > 0)[0]) - 1
+    assert h["control"][landing] == "load" and h["load_factor"][landing] == pytest.approx(chi / end, rel=1e-7)
+    assert h["load_factor"].max() == h["load_factor"][landing]
     pl = h["n_plastic"] > 0
     assert pl.sum() > 100 and np.all(np.diff(u) > 0)  # no snap-back in this bar: u grows all along
     assert sigma[-1] < 0.31 * chi

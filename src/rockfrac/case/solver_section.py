@@ -47,9 +47,9 @@ class SolverSection(_Section):
     easy_iterations: int = Field(6, ge=0, le=1000, description="a converged step is easy (the next may grow) if "
                                  "it took at most this many Newton iterations without an active-set change "
                                  "(max_iterations or more: every converged step)")
-    locate_activation: bool = Field(True, description="end a load-controlled step where a cohesive surface "
-                                    "first yields (its peak becomes a step); false steps over it, as the paper's "
-                                    "study does")
+    locate_activation: bool = Field(True, description="end a step where a cohesive surface first yields "
+                                    "(its peak becomes a step; a path step that yields is done again as a load "
+                                    "step to it); false steps over it, as the paper's study does")
     implex_tol: float = Field(0.05, ge=1e-6, le=10.0, description="IMPL-EX: largest |T_ex - T| of a step "
                               "relative to the law's strength; a step above it is shortened, below it may grow")
     # unset (None) when not given, so that a case without it resolves to the text it had before the key

@@ -212,6 +212,10 @@ class ElementGroup(ABC):
         pending surface first reaches its yield surface along the elastic response (None: none)."""
         return None
 
+    def yielded(self) -> bool:
+        """True if a point of the step's trial state has yielded (a pending surface activated in it)."""
+        return False
+
     def path_weight(self) -> int:
         """How many points the path measure averages over (to combine several groups)."""
         return 0

@@ -166,8 +166,16 @@ class _CohesiveGroup(ElementGroup):
 
     BISECTIONS = 60  # halvings of the step fraction when locating an activation (2^-60: round-off)
 
+    ON_SURFACE = 1e-9  # a committed point with F >= -ON_SURFACE x the law's strength scale has reached its surface
+
     def activation_pending(self) -> bool:
-        return self.dissipated == 0.0 and not self.any_plastic()
+        """No point has yielded, nor reached its yield surface (a located activation is not located again)."""
+        if self.dissipated != 0.0 or self.any_plastic():
+            return False
+        return not bool(np.any(self.law.yield_values(self.state) >= -self.ON_SURFACE * self.law.scale))
+
+    def yielded(self) -> bool:
+        return bool(np.any(self.trial[:, self.mode] == MODE_PLASTIC))
 
     def traction_increment(self, u: np.ndarray, du: np.ndarray) -> np.ndarray:
         """Local tractions' increment (n_pts, dim) [Pa] along du from the committed state while no
@@ -184,7 +192,7 @@ class _CohesiveGroup(ElementGroup):
         f0 = self.law.yield_values(trial)
         trial[:, self._t] = t0 + dt
         f1 = self.law.yield_values(trial)
-        live = np.flatnonzero((f0 < -1e-9 * self.law.scale) & (f1 > 0.0))
+        live = np.flatnonzero((f0 < -self.ON_SURFACE * self.law.scale) & (f1 > 0.0))
         if not live.size:
             return None
         at, t0, dt = trial[live], t0[live], dt[live]

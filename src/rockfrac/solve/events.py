@@ -5,12 +5,15 @@ is the linear one of the committed tangent; along it each point's traction moves
 and the fraction of the increment at which the first point meets its yield surface is found by
 bisection (:meth:`rockfrac.elements.base.ElementGroup.activation`). The stepping then ends the step
 there, so the activation (the peak of a brittle crack) is a converged step rather than stepped over.
+A path-controlled step (arc length, energy) whose converged state has yielded from a pending one is
+located alike, along its own load increment, and redone as a load step to the activation.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from rockfrac.elements.base import ElementGroup
 from rockfrac.model import Model
 from rockfrac.solve.linear import LinearSolver
 from rockfrac.solve.newton import Loads
@@ -20,11 +23,8 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
                         solver: LinearSolver) -> float | None:
     """The fraction of the load increment lam -> lam + dlam at which a pending surface first
     yields along the committed tangent's response, or None (none pending, or none yields)."""
-    # a group of a distributed model is each rank's share of a surface: pending on every rank, or not at all
-    # (a share without a plastic point on one rank while the set yields on another is not pending)
-    held = model.reduce_max(np.array([0.0 if g.activation_pending() else 1.0 for g in model.groups]))
-    pending = [g for g, h in zip(model.groups, held) if h == 0.0]
-    if not pending:
+    groups = _pending(model)
+    if not groups:
         return None
     model.begin_step()  # the trial state is the committed one: the tangent at u
     asm = model.assemble(u, u, loads.forces(lam))
@@ -44,9 +44,27 @@ def activation_fraction(model: Model, u: np.ndarray, lam: float, dlam: float, lo
         return None
     if du is None or not model.reduce_all_finite(du):
         return None
-    found = [s for g in pending if (s := g.activation(u, du)) is not None]
+    found = [s for g in groups if (s := g.activation(u, du)) is not None]
     first = model.reduce_min(min(found) if found else np.inf)
     return first if np.isfinite(first) else None
+
+
+def _pending(model: Model) -> list[ElementGroup]:
+    """The groups whose activation is pending. A group of a distributed model is each rank's share of a
+    surface: pending on every rank, or not at all (a share without a plastic point on one rank while
+    the set yields on another is not pending)."""
+    held = model.reduce_max(np.array([0.0 if g.activation_pending() else 1.0 for g in model.groups]))
+    return [g for g, h in zip(model.groups, held) if h == 0.0]
+
+
+def pending(model: Model) -> bool:
+    """True if a surface of the model has not yielded anywhere yet (its activation is still to locate)."""
+    return bool(_pending(model))
+
+
+def yielded(model: Model) -> bool:
+    """True if a point of a surface (on any rank) has yielded in the step's trial state."""
+    return model.reduce_any(any(g.yielded() for g in model.groups))
 
 
 RIGID_UPDATES = 30  # the most multiplier updates of the rigid prediction

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rockfrac.model import Model
-from rockfrac.solve.events import activation_fraction
+from rockfrac.solve.events import activation_fraction, pending, yielded
 from rockfrac.solve.linear import LinearSolver
 from rockfrac.solve.newton import Loads, NewtonOptions, NewtonResult, PathControl, newton_step, points
 from rockfrac.solve.paths import Committed, PathSpec
@@ -236,11 +236,31 @@ def run_stages(
                 ctrl = PathControl(constraint.measure, constraint.value(u, lam) + increment, 1e-9 * nominal["path"],
                                    size["load"] * size["path"] / nominal["path"], stage.path.rigid_ok,
                                    constraint.lam_coeff)
-                model.set_step("path", increment)
-                res = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
-                if not hold and res.converged and res.lam > 1.0 - 1e-12:  # land exactly on the stage end
-                    model.set_step("load", 1.0 - lam)
-                    res = newton_step(model, u, lam, 1.0, loads, solver, newton)
+
+                def path_step() -> NewtonResult:
+                    model.set_step("path", increment)
+                    out = newton_step(model, u, lam, lam, loads, solver, newton, ctrl)
+                    if not hold and out.converged and out.lam > 1.0 - 1e-12:  # land exactly on the stage end
+                        model.set_step("load", 1.0 - lam)
+                        out = newton_step(model, u, lam, 1.0, loads, solver, newton)
+                    return out
+
+                locate = not hold and stepping.locate_activation and pending(model)
+                res = path_step()
+                if locate and res.converged and yielded(model):
+                    # a surface yielded in the step (it may have passed its peak, the load falling): end the
+                    # step where the first point yields along the response before it, as a load step
+                    reach = min(1.0 - lam, max(size["load"], abs(res.lam - lam)))
+                    s = activation_fraction(model, u, lam, reach, loads, solver)
+                    target = lam + s * reach if s is not None and s < 1.0 else lam
+                    if target - lam >= stepping.min_step * nominal["load"]:
+                        log(f"  {stage.name}: a surface first yields in the path step, at load factor "
+                            f"{target:.9f}; ending the step there")
+                        model.set_step("load", target - lam)
+                        res = newton_step(model, u, lam, target, loads, solver, newton)
+                        mode = "load" if res.converged else mode  # a failed one cuts the path step back
+                    else:  # no activation to end on: the step as it was (the prediction reset the trial state)
+                        res = path_step()
             elif hold:
                 mode = "hold"
                 model.set_step("load", 0.0)

@@ -413,7 +413,8 @@ def test_distributed_history_equals_serial(name, n):
     elif name.startswith("bar"):
         assert ser["path"].sum() >= 20 and ser["lam"][-1] < ser["lam"].max()  # past the peak under control
     elif name.startswith("cmod"):
-        assert ser["path"].sum() == ser["path"].size  # every step under CMOD control
+        assert ser["path"].sum() == ser["path"].size - 1  # every step under CMOD control but the one ending at
+        # the first yield (a path step located as a load step)
     elif name == "breakout_initial":
         assert ser["iterations"].max() >= 3  # surfaces yield in the run
     elif name == "plane_nodal_3d":
@@ -703,7 +704,8 @@ def test_rockfrac_run_on_ranks_writes_the_serial_outputs(tmp_path, n, serial_spl
     assert (tmp_path / "mpi" / "crack_map.png").stat().st_size > 10_000
     # the ParaView series: one piece per rank, joined by a .pvtu per step listed in the .pvd
     files = sorted(p.stem for p in (serial / "vtk").glob("*.vtu"))
-    assert len(files) == 3 and files == sorted(p.stem for p in (tmp_path / "mpi" / "vtk").glob("*.pvtu"))
+    steps = len(read_csv(serial / "history.csv")["step"])
+    assert len(files) == steps // 48 >= 2 and files == sorted(p.stem for p in (tmp_path / "mpi" / "vtk").glob("*.pvtu"))
     pvd = (tmp_path / "mpi" / "vtk" / "results.pvd").read_text()
     assert all(f"{f}.pvtu" in pvd for f in files) and ".vtu" not in pvd.replace(".pvtu", "")
     for f in files:
@@ -759,7 +761,7 @@ def test_rigid_plastic_surfaces_on_loops_are_counted_on_the_whole_mesh(tmp_path)
 
 
 def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
-    """2 ranks with a checkpoint every 30 steps, run to its stop rule (144 steps); resumed from the
+    """2 ranks with a checkpoint every 30 steps, run to its stop rule (143 steps); resumed from the
     last checkpoint (step 120) on 2 ranks: the history is the uninterrupted one to the last bit.
     On 3 ranks the resume is refused, once, by name. With GMRES + GAMG: MUMPS's parallel LU is not
     reproducible to the last bit from one run to the next (its contribution blocks are summed in the
@@ -776,7 +778,7 @@ def test_a_parallel_checkpoint_resumes_bit_for_bit_on_the_same_ranks(tmp_path):
     first = launch(2)
     assert first.returncode == 0, first.stderr[-2000:]
     whole = (out / "history.csv").read_text()
-    assert whole.count("\n") == 145 and (out / "checkpoint.rank1.npz").exists()
+    assert whole.count("\n") == 144 and (out / "checkpoint.rank1.npz").exists()
     refused = launch(3, "--resume")
     assert refused.returncode == 2 and refused.stderr.count("resume on as many") == 1, refused.stderr[-2000:]
     again = launch(2, "--resume")

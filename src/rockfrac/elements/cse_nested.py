@@ -63,6 +63,7 @@ class CohesiveRPNested(CohesiveRP):
         """The step's first multipliers: the committed tractions (lambda = T at convergence)."""
         super().begin_step()
         self.lam = self.points.from_local(self.state[:, self._t])
+        self._fresh = False  # an update of the activation's prediction is not one of the step's
 
     def multipliers(self, u: np.ndarray) -> np.ndarray:
         """Global-frame multipliers (n_pts, dim) [Pa]: the held ones (u carries none)."""
@@ -86,11 +87,7 @@ class CohesiveRPNested(CohesiveRP):
         multiplier_gap)."""
         if self._all_held:
             self._pinned[:] = True
-            ev = super().evaluate(u, u_n)
-        elif self._fresh:
-            ev = self._evaluate_fresh(u, u_n)
-        else:
-            ev = super().evaluate(u, u_n)
+        ev = self._evaluate_fresh(u, u_n) if self._fresh and not self._all_held else super().evaluate(u, u_n)
         nd = 2 * self.dim
         return Evaluation(np.ascontiguousarray(ev.fe[:, :nd]), np.ascontiguousarray(ev.ke[:, :nd, :nd]), ok=ev.ok,
                           n_switched=ev.n_switched, message=ev.message, local_residual=ev.local_residual)
@@ -101,12 +98,14 @@ class CohesiveRPNested(CohesiveRP):
         return self.lam, self.points.from_local(self.trial[:, self._t]), self.points.weight
 
     def _evaluate_fresh(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
-        """The first evaluation after an update, with every point that was not plastic in the last one and
-        whose new lambda is inside its yield surface held constrained (T = lambda + r h), once. Right after lambda := T the trial lambda + r h
-        counts the elastic jump h twice (it is already in lambda), up to r h outside: a rigid point
-        would yield there, and a softening surface be put on its falling branch below its peak (the
-        traction-loaded bar at 0.78 of its load, where it yields at 0.784). The correction from this
-        evaluation closes those jumps; the iterations after it are the plain ones."""
+        """The first evaluation after an update, with every point that was not plastic in the last one
+        and whose new lambda is inside its yield surface held constrained (T = lambda + r h), once.
+
+        Right after lambda := T the trial lambda + r h counts the elastic jump h twice (it is already in
+        lambda), up to r h outside: a rigid point would yield there, and a softening surface be put on
+        its falling branch below its peak (the traction-loaded bar at 0.78 of its load, where it yields
+        at 0.784). The correction from this evaluation closes those jumps; the iterations after it are
+        the plain ones."""
         self._fresh = False
         at = self.trial.copy()  # the last evaluation's: its plastic points flow on, the others are held
         at[:, self._t] = self.points.local(self.lam)

@@ -267,12 +267,33 @@ def joint_2d_case(max_steps: int = 30) -> dict:
     return case
 
 
+@functools.cache
+def _inclusion_msh() -> Path:
+    """tests/test_smoothed_normals.py's turned inclusion, meshed once per process."""
+    from test_smoothed_normals import inclusion_msh
+
+    return inclusion_msh(Path(tempfile.mkdtemp(prefix="rockfrac_inclusion_")) / "inclusion.msh")
+
+
+def inclusion_case() -> dict:
+    """RP surfaces on every edge of an annulus and round the inclusion it holds, smoothed normals (the
+    set's frames made from the whole mesh, on rank 0): the inclusion turns, sliding at its polygon's
+    vertices, on the points of both ranks."""
+    from test_smoothed_normals import inclusion_case as turned
+
+    case = turned(_inclusion_msh(), "rp", "smoothed")
+    case["stages"][1]["steps"] = 5
+    case["output"] = {"picture": False, "vtk": False, "points": False}
+    return case
+
+
 CASES = {
     # EP surfaces of the paper's law, load control; the activation is located as an event
     "paper_ep": lambda: paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3),
     # rigid-plastic surfaces: their multipliers in the ranks' blocks, MUMPS's LU through the saddle points
     "paper_rp": lambda: paper_case("rp", axial_steps=60, axial_displacement=1.5e-3),
     "bar_arc_length_rp": lambda: rp_bar_case("arc_length"),
+    "inclusion_smoothed_rp": inclusion_case,
     "splitting_path": splitting_case,
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
@@ -343,7 +364,7 @@ CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length"}
 # in 0.7 s, 8 s on the locally tracked band, 16 s on the nodal one (measured 2026-11-30).
 SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets", "plane_nodal_3d", "grains_ep", "cmod_opening",
         "bar_arc_length", "bar_energy", "bar_arc_length_rp", "band_none", "band_local", "joint_2d_cracks",
-        "band_nodal"}
+        "band_nodal", "inclusion_smoothed_rp"}
 
 
 def plastic_cylinder_case() -> dict:

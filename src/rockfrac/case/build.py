@@ -21,6 +21,7 @@ from rockfrac.case.build_groups import (  # noqa: F401 (re-exported: the case ->
     embedded_law,
     law_of_section,
     make_bulk_groups,
+    set_points,
     stiffest_modulus,
 )
 from rockfrac.case.build_mesh import insert_cohesive, make_mesh, mean_cell_size  # noqa: F401
@@ -33,7 +34,6 @@ from rockfrac.elements.base import ElementGroup
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.ede import EmbeddedDruckerPrager
 from rockfrac.elements.ede_nodal_parts import HeldEnrichment
-from rockfrac.elements.interface_points import interface_points, interface_points_3d
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh
@@ -191,7 +191,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         junction = None
         if share is None:
             cells = set_cells[k]
-            points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+            points = set_points(section, mesh, cells)
             total = points.n
         else:  # the rank's points (on the rank of their first interface cell), from rank 0
             mine = share.cohesive[k]

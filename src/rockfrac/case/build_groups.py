@@ -19,6 +19,8 @@ from rockfrac.elements.ede_cracks import cut_along, cut_by_plane
 from rockfrac.elements.ede_enrichment import EnrichmentRegistry
 from rockfrac.elements.ede_nodal import NodalEmbeddedDruckerPrager
 from rockfrac.elements.ede_paths import Exchange
+from rockfrac.elements.interface_points import (InterfacePoints, interface_points, interface_points_3d,
+                                                 smoothed_normals)
 from rockfrac.elements.plastic_solid import DruckerPragerSolid
 from rockfrac.elements.solid import ElasticSolid, SolidGroup
 from rockfrac.errors import CaseError
@@ -29,7 +31,7 @@ from rockfrac.laws.mohr_coulomb_softening import EmbeddedLaw
 from rockfrac.laws.registry import law_class
 from rockfrac.laws.traction_law import TractionLaw
 from rockfrac.mesh import Mesh
-from rockfrac.mesh.interfaces import at_junctions
+from rockfrac.mesh.interfaces import at_junctions, tied_nodes
 
 AUGMENTATION_SAFETY = 10.0  # r >= this x the law's softening modulus
 
@@ -92,6 +94,18 @@ def is_embedded(case: Case, section: BulkSection, region: str) -> bool:
     emb = case.embedded
     return (emb is not None and section.model is BulkModel.drucker_prager
             and (emb.regions is None or region in emb.regions))
+
+
+def set_points(section, mesh: Mesh, cells: np.ndarray, root: np.ndarray | None = None) -> InterfacePoints:
+    """The nodal integration points of a cohesive set's interface cells ``cells`` (rows of
+    mesh.interfaces), with the set's normals smoothed at the mesh's nodes if it asks for it
+    (``root``: :func:`tied_nodes` of the mesh, if made already)."""
+    points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+    angle = section.smoothing
+    if angle is None:
+        return points
+    root = tied_nodes(mesh) if root is None else root
+    return smoothed_normals(points, root[points.minus], angle)
 
 
 def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none",

@@ -16,10 +16,12 @@ from pydantic import Discriminator, Field, Tag, model_validator
 
 from rockfrac.laws.mohr_coulomb_surface import MohrCoulombParameters, WorkRule
 from rockfrac.laws.registry import DEFAULT, LAWS
+from rockfrac.values import Angle
 from rockfrac.values import Section as _Section
 from rockfrac.values import Stiffness
 
 TractionLawSection = MohrCoulombParameters  # the paper's law, Sect. 4.2
+SMOOTHING_ANGLE = 0.2618  # [rad], 15 degrees: normals = 'smoothed' without smoothing_angle
 
 
 class CohesiveForm(str, Enum):
@@ -72,6 +74,25 @@ class CohesiveCommon(_Section):
                                     "extra dissipation is the column D_viscous (default: none, the "
                                     "rate-independent law)")
 
+    normals: Literal["pairs", "smoothed"] = Field(
+        "pairs", description="each point's normal: 'pairs' (from the interface cells of its own node pair: "
+        "the edge's or face's, the mean of both at a crack's kink; the paper's) or 'smoothed' (the set's points at "
+        "one mesh node take their length- or area-weighted mean normal where all lie within smoothing_angle "
+        "of it: a polygonal surface's vertex, not a crossing of surfaces; with surfaces on every edge "
+        "the bulk's pairs tie a vertex's copies on each side, and rigid-plastic pairs there slide only "
+        "along a frame they share)")
+    smoothing_angle: Angle | None = Field(
+        None, gt=0.0, description="normals = 'smoothed': the largest angle [rad] between a point's normal and the "
+        f"mean normal of its node for the node to be smoothed (default {SMOOTHING_ANGLE}: 15 degrees, a vertex "
+        "of two edges at up to about 30 degrees)")
+
+    @property
+    def smoothing(self) -> float | None:
+        """The smoothing angle of the set's normals [rad], None: each pair's own normal."""
+        if self.normals == "pairs":
+            return None
+        return SMOOTHING_ANGLE if self.smoothing_angle is None else self.smoothing_angle
+
     @property
     def multiplier_unknowns(self) -> bool:
         """True if the set's multipliers are unknowns of the model (RP, not nested)."""
@@ -88,6 +109,8 @@ class CohesiveCommon(_Section):
             raise ValueError("curves go with where = 'curves' (a list of curve group names)")
         if (self.where is Placement.surfaces) != (self.surfaces is not None):
             raise ValueError("surfaces go with where = 'surfaces' (a list of surface group names of a 3D mesh)")
+        if self.smoothing_angle is not None and self.normals != "smoothed":
+            raise ValueError("smoothing_angle only applies to normals = 'smoothed'")
         return self
 
     @model_validator(mode="after")

@@ -19,12 +19,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rockfrac.case.build_groups import is_embedded, material_cells
+from rockfrac.case.build_groups import is_embedded, material_cells, set_points
 from rockfrac.case.build_mesh import insert_cohesive, make_mesh
 from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.schema import Case
-from rockfrac.elements.interface_points import InterfacePoints, interface_points, interface_points_3d
+from rockfrac.elements.interface_points import InterfacePoints
 from rockfrac.mesh.interfaces import at_junctions, looped_pairs_by_set, tied_nodes
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
@@ -92,7 +92,7 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     root = tied_nodes(mesh) if rigid else None
     sets = []
     for section, cells in zip(case.cohesive_sets, set_cells):
-        points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
+        points = set_points(section, mesh, cells, root)
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
         junction = at_junctions(mesh, points.minus, root) if section.form is CohesiveForm.rp else None
         sets.append((section, cells, points, where, junction))

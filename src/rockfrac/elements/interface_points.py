@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -191,3 +191,42 @@ def interface_points_3d(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints
                            frame=local_frames_3d(normal), x=nodes[uniq[:, 0]].copy(), cell=owner[split][first],
                            segments=np.asarray(cells, dtype=np.int64), segment_points=segment_points.reshape(k, m),
                            segment_x=xm)
+
+
+def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float) -> InterfacePoints:
+    """The points with a faceted surface's normals smoothed at its vertices (contact's averaged nodal
+    normals): the points of one mesh node (``node``: each point's original node) whose normals all lie
+    within ``max_angle`` [rad] of their weight-averaged mean take that mean, each with its own sign
+    (a polygon's vertex or a faceted sheet's node smooths; a crossing of surfaces does not).
+
+    Where every edge carries a surface, the copies of a node on each side of a polygonal surface are
+    tied together by the pairs into the bulk, so the surface's two pairs there see one jump; a
+    rigid-plastic pair's jump is its flow, along its own frame, and with the two edges' frames the
+    vertex cannot slide. Sharing one frame, the two pairs flow along one direction.
+    """
+    if points.n == 0:
+        return points
+    d = points.dim
+    normal = points.frame[:, -1]
+    _, group = np.unique(np.asarray(node), return_inverse=True)
+    group = group.ravel()
+    n_groups = int(group.max()) + 1
+    order = np.argsort(group, kind="stable")
+    first = order[np.searchsorted(group[order], np.arange(n_groups))]  # each node's first point
+    sign = np.where(np.einsum("pi,pi->p", normal, normal[first[group]]) < 0.0, -1.0, 1.0)
+    aligned = normal * sign[:, None]
+    summed = np.stack([np.bincount(group, weights=points.weight * aligned[:, i], minlength=n_groups)
+                       for i in range(d)], axis=1)
+    size = np.linalg.norm(summed, axis=1)
+    mean = summed / np.where(size > 0.0, size, 1.0)[:, None]
+    within = np.einsum("pi,pi->p", aligned, mean[group]) >= np.cos(max_angle)
+    smooth_node = (np.bincount(group, minlength=n_groups) >= 2) & (size > 0.0)
+    np.logical_and.at(smooth_node, group, within)
+    smooth = smooth_node[group]
+    if not smooth.any():
+        return points
+    new = mean[group[smooth]] * sign[smooth, None]
+    frame = points.frame.copy()
+    frame[smooth] = (np.stack([np.stack([new[:, 1], -new[:, 0]], axis=1), new], axis=1) if d == 2
+                     else local_frames_3d(new))
+    return replace(points, frame=frame)

@@ -18,7 +18,7 @@ case's kn over R or K, so that eta k, the viscous stress per jump rate, stays th
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
-run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
+run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked); ``--normals smoothed``: every set's normals smoothed at its vertices (likewise). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
 A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start; with no
 row added, the table and its json are left as they were). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
@@ -126,7 +126,8 @@ def run_key(rec: dict) -> str:
     """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
     stop, aug, pen = rec.get("stop_fraction", 0.5), rec.get("augmentation"), rec.get("penalty")
     return (f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
-            + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else "") + (" elim" if rec.get("elimination") else ""))
+            + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else "") + (" elim" if rec.get("elimination") else "")
+            + (" smoothed" if rec.get("normals") == "smoothed" else ""))
 
 
 def solver_label(rec: dict) -> str:
@@ -205,8 +206,12 @@ def variant_case(base: dict, args: argparse.Namespace, variant: str, steps: int,
         d["solver"] = {"fallback": "implex"}
     if args.elimination:
         d.setdefault("solver", {})["elimination"] = True
+    if args.normals == "smoothed":
+        for coh in sections:
+            coh["normals"] = "smoothed"
     name = (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
-            + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else ""))
+            + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else "")
+            + ("_smoothed" if args.normals == "smoothed" else ""))
     return d, name, eta
 
 
@@ -226,6 +231,9 @@ def main() -> None:
                          "faster than it, about 1e14 Pa/m)")
     ap.add_argument("--penalty", type=float, default=None,
                     help="EP's kn = kt [Pa/m] (default: the case's, 1e15 on the disc, 2e12 on the grains)")
+    ap.add_argument("--normals", choices=("pairs", "smoothed"), default="pairs",
+                    help="[cohesive] normals of every set (smoothed: averaged at a polygonal surface's vertices; the "
+                         "run folder's name ends in _smoothed)")
     ap.add_argument("--elimination", action="store_true",
                     help="[solver] elimination = true: a stalled Newton iteration solves its few stalled unknowns "
                          "alone (the run folder's name ends in _elim)")
@@ -312,7 +320,7 @@ def main() -> None:
                    "D_dissipated": float(h["D_dissipated"][-1]), "D_surface_law": float(h["D_surface_law"][-1]),
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
                    "viscosity": eta if variant.endswith("viscous") else None,
-                   "augmentation": aug, "penalty": pen, "elimination": args.elimination,
+                   "augmentation": aug, "penalty": pen, "elimination": args.elimination, "normals": args.normals,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -338,6 +346,7 @@ def main() -> None:
         label += f", r = {rec['augmentation']:g} Pa/m" if rec.get("augmentation") else ""
         label += f", kn = {rec['penalty']:g} Pa/m" if rec.get("penalty") else ""
         label += ", elimination" if rec.get("elimination") else ""
+        label += ", smoothed normals" if rec.get("normals") == "smoothed" else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

@@ -28,7 +28,7 @@ def points_2d(normal_angles, weights, nodes):
 def test_a_polygons_vertex_takes_the_weighted_mean_normal_each_point_with_its_own_sign():
     """Two edges at a vertex, 10 degrees either side of vertical, lengths 1 and 2 (the second
     oriented the other way): both take the length-weighted mean, each with its sign; the point alone
-    at its node and a crossing (two edges at right angles) keep their own."""
+    at its node and two edges at right angles keep their own."""
     a, b = math.radians(80.0), math.radians(100.0) + math.pi  # the second normal flipped
     pts, nodes = points_2d(np.array([a, b, 0.3, 0.0, math.pi / 2]), [1.0, 2.0, 2.0, 1.0, 1.0], [7, 7, 8, 9, 9])
     out = smoothed_normals(pts, nodes, math.radians(15.0))
@@ -48,6 +48,21 @@ def test_a_vertex_sharper_than_the_smoothing_angle_keeps_its_edges_normals():
     np.testing.assert_allclose(smoothed_normals(pts, nodes, math.radians(15.0)).frame, pts.frame, atol=0.0)
     out = smoothed_normals(pts, nodes, math.radians(25.0))
     np.testing.assert_allclose(out.frame[:, 1], [[0.0, 1.0], [0.0, 1.0]], atol=1e-15)
+
+
+def test_at_a_crossing_each_line_through_the_node_is_smoothed_on_its_own():
+    """Four edges at a node: two nearly continuing each other (normals at 90 and 100 degrees, the
+    second flipped) and two more (0 and 6 degrees): each line takes its own mean, the lines are not
+    mixed; a fifth edge at 45 degrees, near neither within 2 x 15 degrees, keeps its own."""
+    angles = np.radians([90.0, 100.0 + 180.0, 0.0, 6.0, 45.0])
+    pts, nodes = points_2d(angles, [1.0] * 5, [3] * 5)
+    out = smoothed_normals(pts, nodes, math.radians(15.0))
+    for i, j, mean in ((0, 1, 95.0), (2, 3, 3.0)):
+        np.testing.assert_allclose(out.frame[i, 1], [math.cos(math.radians(mean)), math.sin(math.radians(mean))],
+                                   atol=1e-15)
+        np.testing.assert_allclose(np.abs(out.frame[j, 1]), np.abs(out.frame[i, 1]), atol=1e-15)
+    np.testing.assert_allclose(out.frame[1, 1], -out.frame[0, 1], atol=1e-15)  # its own sign
+    np.testing.assert_allclose(out.frame[4], pts.frame[4], atol=0.0)
 
 
 def test_a_faceted_sheets_node_takes_the_area_weighted_mean_normal_in_3d():

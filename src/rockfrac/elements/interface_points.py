@@ -6,6 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from rockfrac.fem.loads import face_rule, segment_pair_forces
 
@@ -193,11 +195,35 @@ def interface_points_3d(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints
                            segment_x=xm)
 
 
+def _facets(normal: np.ndarray, node: np.ndarray, max_angle: float) -> np.ndarray:
+    """Each point's facet: the points of one node joined, pair by pair, where their normals are at most
+    2 max_angle apart (either sign), connected components of that graph; (n_pts,) labels. Two edges
+    continuing each other through a node form one facet, a crossing of two such lines two."""
+    order = np.argsort(node, kind="stable")
+    sorted_node = node[order]
+    size = np.bincount(np.unique(sorted_node, return_inverse=True)[1].ravel())
+    rows, cols = [], []
+    for offset in range(1, int(size.max())):  # each point against the ones after it at its node
+        a = np.arange(order.size - offset)
+        b = a + offset
+        same = sorted_node[a] == sorted_node[b]
+        a, b = order[a[same]], order[b[same]]
+        near = np.abs(np.einsum("pi,pi->p", normal[a], normal[b])) >= np.cos(2.0 * max_angle)
+        rows.append(a[near])
+        cols.append(b[near])
+    n = normal.shape[0]
+    r = np.concatenate(rows) if rows else np.zeros(0, dtype=np.int64)
+    c = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+    graph = sp.coo_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
 def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float) -> InterfacePoints:
     """The points with a faceted surface's normals smoothed at its vertices (contact's averaged nodal
-    normals): the points of one mesh node (``node``: each point's original node) whose normals all lie
-    within ``max_angle`` [rad] of their weight-averaged mean take that mean, each with its own sign
-    (a polygon's vertex or a faceted sheet's node smooths; a crossing of surfaces does not).
+    normals): the points of one facet at a mesh node (``node``: each point's original node; a facet:
+    :func:`_facets`) whose normals all lie within ``max_angle`` [rad] of their weight-averaged mean
+    take that mean, each with its own sign. A polygon's vertex or a faceted sheet's node is one facet;
+    at a crossing each line (sheet) through the node is one, and the lines are not mixed.
 
     Where every edge carries a surface, the copies of a node on each side of a polygonal surface are
     tied together by the pairs into the bulk, so the surface's two pairs there see one jump; a
@@ -208,7 +234,7 @@ def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float
         return points
     d = points.dim
     normal = points.frame[:, -1]
-    _, group = np.unique(np.asarray(node), return_inverse=True)
+    _, group = np.unique(_facets(normal, np.asarray(node), max_angle), return_inverse=True)
     group = group.ravel()
     n_groups = int(group.max()) + 1
     order = np.argsort(group, kind="stable")

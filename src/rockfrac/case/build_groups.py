@@ -8,7 +8,7 @@ import numpy as np
 
 from rockfrac.case.build_mesh import mean_cell_size
 from rockfrac.case.messages import require
-from rockfrac.case.cohesive_section import CohesiveForm
+from rockfrac.case.cohesive_section import CohesiveCommon, CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
@@ -96,7 +96,7 @@ def is_embedded(case: Case, section: BulkSection, region: str) -> bool:
             and (emb.regions is None or region in emb.regions))
 
 
-def set_points(section, mesh: Mesh, cells: np.ndarray, root: np.ndarray | None = None) -> InterfacePoints:
+def set_points(section: CohesiveCommon, mesh: Mesh, cells: np.ndarray, root: np.ndarray | None = None) -> InterfacePoints:
     """The nodal integration points of a cohesive set's interface cells ``cells`` (rows of
     mesh.interfaces), with the set's normals smoothed at the mesh's nodes if it asks for it
     (``root``: :func:`tied_nodes` of the mesh, if made already)."""

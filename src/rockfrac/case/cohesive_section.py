@@ -76,15 +76,16 @@ class CohesiveCommon(_Section):
 
     normals: Literal["pairs", "smoothed"] = Field(
         "pairs", description="each point's normal: 'pairs' (from the interface cells of its own node pair: "
-        "the edge's or face's, the mean of both at a crack's kink; the paper's) or 'smoothed' (the set's points at "
-        "one mesh node take their length- or area-weighted mean normal where all lie within smoothing_angle "
-        "of it: a polygonal surface's vertex, not a crossing of surfaces; with surfaces on every edge "
+        "the edge's or face's, the mean of both at a crack's kink; the paper's) or 'smoothed' (at each mesh node "
+        "the set's points whose normals are within twice smoothing_angle of each other form a facet, whose "
+        "points take its length- or area-weighted mean normal where all lie within smoothing_angle of it: a "
+        "polygonal surface's vertex, each line of edges through a crossing; with surfaces on every edge "
         "the bulk's pairs tie a vertex's copies on each side, and rigid-plastic pairs there slide only "
         "along a frame they share)")
     smoothing_angle: Angle | None = Field(
         None, gt=0.0, description="normals = 'smoothed': the largest angle [rad] between a point's normal and the "
-        f"mean normal of its node for the node to be smoothed (default {SMOOTHING_ANGLE}: 15 degrees, a vertex "
-        "of two edges at up to about 30 degrees)")
+        f"mean normal of its facet for the facet to be smoothed (default {SMOOTHING_ANGLE}: 15 degrees, a "
+        "vertex of two edges at up to about 30 degrees)")
 
     @property
     def smoothing(self) -> float | None:

@@ -238,7 +238,7 @@ def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float
     group = group.ravel()
     n_groups = int(group.max()) + 1
     order = np.argsort(group, kind="stable")
-    first = order[np.searchsorted(group[order], np.arange(n_groups))]  # each node's first point
+    first = order[np.searchsorted(group[order], np.arange(n_groups))]  # each facet's first point
     sign = np.where(np.einsum("pi,pi->p", normal, normal[first[group]]) < 0.0, -1.0, 1.0)
     aligned = normal * sign[:, None]
     summed = np.stack([np.bincount(group, weights=points.weight * aligned[:, i], minlength=n_groups)
@@ -246,9 +246,9 @@ def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float
     size = np.linalg.norm(summed, axis=1)
     mean = summed / np.where(size > 0.0, size, 1.0)[:, None]
     within = np.einsum("pi,pi->p", aligned, mean[group]) >= np.cos(max_angle)
-    smooth_node = (np.bincount(group, minlength=n_groups) >= 2) & (size > 0.0)
-    np.logical_and.at(smooth_node, group, within)
-    smooth = smooth_node[group]
+    smooth_facet = (np.bincount(group, minlength=n_groups) >= 2) & (size > 0.0)
+    np.logical_and.at(smooth_facet, group, within)
+    smooth = smooth_facet[group]
     if not smooth.any():
         return points
     new = mean[group[smooth]] * sign[smooth, None]

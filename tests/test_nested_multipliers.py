@@ -31,7 +31,9 @@ def test_anderson_mixing_solves_a_linear_fixed_point_in_n_plus_one_updates():
     x = np.zeros(3)
     for _ in range(4):
         x = mixing.next(x, m @ x + b, np.ones(3))
-    assert np.linalg.norm(x - x_star) < 1e-10 * np.linalg.norm(x_star)
+    # to round-off: the mixing solves the normal equations of the residuals' differences, whose Gram matrix
+    # has a condition number of 5e6 at the 4th update here (2e-10 measured with numpy 2.4)
+    assert np.linalg.norm(x - x_star) < 1e-8 * np.linalg.norm(x_star)
     plain, y = AndersonMixing(0), np.zeros(3)
     for _ in range(4):
         y = plain.next(y, m @ y + b, np.ones(3))

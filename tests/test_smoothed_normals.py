@@ -11,7 +11,7 @@ import pytest
 from conftest import paper_case
 
 from rockfrac.case.schema import CaseError, parse_case
-from rockfrac.elements.interface_points import InterfacePoints, smoothed_normals
+from rockfrac.elements.interface_points import InterfacePoints, local_frames_3d, smoothed_normals
 from rockfrac.mesh.gmsh_io import gmsh_session
 from rockfrac.output.csvout import read_csv
 
@@ -71,8 +71,6 @@ def test_a_faceted_sheets_node_takes_the_area_weighted_mean_normal_in_3d():
     tilt = math.radians(8.0)
     az = np.radians([0.0, 90.0, 180.0, 270.0])
     n = np.stack([math.sin(tilt) * np.cos(az), math.sin(tilt) * np.sin(az), np.full(4, math.cos(tilt))], axis=1)
-    from rockfrac.elements.interface_points import local_frames_3d
-
     pts = InterfacePoints(minus=np.arange(4), plus=np.arange(4, 8), weight=np.full(4, 0.25),
                           frame=local_frames_3d(n), x=np.zeros((4, 3)), cell=np.arange(4))
     out = smoothed_normals(pts, np.zeros(4, dtype=np.int64), math.radians(10.0))

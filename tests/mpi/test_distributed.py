@@ -296,6 +296,10 @@ CASES = {
     "paper_rp": lambda: paper_case("rp", axial_steps=60, axial_displacement=1.5e-3),
     "bar_arc_length_rp": lambda: rp_bar_case("arc_length"),
     "inclusion_smoothed_ep": inclusion_case,
+    # RP surfaces on every edge, their multipliers unknowns: MUMPS's LU of the saddle point with room for
+    # pivots off its zero diagonal (it ran out of workspace and stopped at the first step)
+    "every_edge_rp": lambda: dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
+                                  output={"picture": False, "vtk": False, "points": False}),
     "splitting_path": splitting_case,
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
@@ -324,9 +328,10 @@ CASES = {
 }
 
 
-def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> None:
+def assert_same_history(par: dict, ser: dict, any_iterations: bool = False, u_rtol: float = 1e-9) -> None:
     """any_iterations: the Newton iterations of a step may differ by more than one, their total by
-    at most 5 % (see CHATTY)."""
+    at most 5 % (see CHATTY); u_rtol: the unknowns' tolerance, relative to a step's largest (see
+    CIRCULATING)."""
     assert "error" not in par, str(par.get("error"))
     assert str(par["message"]) == str(ser["message"])
     assert par["lam"].shape == ser["lam"].shape
@@ -337,9 +342,16 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False) -> N
         assert off.max() <= 1 and np.count_nonzero(off) <= 0.02 * off.size, np.flatnonzero(off)
     np.testing.assert_array_equal(par["path"], ser["path"])
     assert np.abs(par["lam"] - ser["lam"]).max() <= 1e-9
-    for key in ("u", "f_int"):
+    for key, rtol in (("u", u_rtol), ("f_int", 1e-9)):
         scale = np.maximum(np.abs(ser[key]).max(axis=1, keepdims=True), 1e-300)  # a held step: u = 0
-        assert (np.abs(par[key] - ser[key]) / scale).max() <= 1e-9, key
+        assert (np.abs(par[key] - ser[key]) / scale).max() <= rtol, key
+
+
+# Cases whose unknowns agree to less than 1e-9: RP pairs held shut on loops round every node, whose
+# multipliers' circulation only the junctions' perturbed-Lagrangian term fixes (JUNCTION_EPS), so
+# round-off moves it by 1e-8 of the tractions (measured 8e-9 on 2 ranks; the displacements agree to
+# 1e-23 of the largest, the forces to 4e-15)
+CIRCULATING = {"every_edge_rp": 1e-7}
 
 
 # Cases whose Newton iterations per step are not a test of the ranks: at the kink of the bilinear
@@ -438,6 +450,8 @@ def test_distributed_history_equals_serial(name, n):
     elif name.startswith("cmod"):
         assert ser["path"].sum() == ser["path"].size - 1  # every step under CMOD control but the one ending at
         # the first yield (a path step located as a load step)
+    elif name == "every_edge_rp":
+        assert ser["iterations"].max() == 2  # held shut: a linear step, its correction and the check
     elif name == "inclusion_smoothed_ep":
         assert ser["iterations"].max() == 2  # the boundary yields (an elastic step takes one iteration)
     elif name == "breakout_initial":
@@ -451,7 +465,7 @@ def test_distributed_history_equals_serial(name, n):
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
     par = distributed_histories(n)[name]
-    assert_same_history(par, ser, any_iterations=name in CHATTY)
+    assert_same_history(par, ser, any_iterations=name in CHATTY, u_rtol=CIRCULATING.get(name, 1e-9))
     # each rank ran on its piece of the mesh: its own cells and, with embedded cracks, the cells
     # sharing a side (nodal cracks: a node) with them
     whole = int(par["whole_cells"][0])

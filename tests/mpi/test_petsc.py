@@ -137,6 +137,30 @@ def test_a_path_following_rp_run_through_petsc_gives_the_serial_history(tmp_path
     assert np.abs(np.asarray(a["newton_iterations"]) - np.asarray(b["newton_iterations"])).max() <= 1
 
 
+def test_rp_surfaces_on_every_edge_through_petsc_give_superlus_history(tmp_path):
+    """RP surfaces on every edge of the 4 x 6 specimen, held shut: a saddle point whose multiplier rows
+    have zero diagonals, so MUMPS pivots off the diagonal beyond its analysis's workspace. With
+    its default room it stopped at the first step (INFO(1) = -9, a "singular tangent"); given room
+    (rockfrac.solve.petsc.MUMPS_SADDLE_WORKSPACE) it gives SuperLU's loads."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import EVERY_EDGE
+
+    from rockfrac.studies import table1
+
+    runs = {}
+    for name in ("superlu", "petsc"):
+        d = dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"), solver={"linear": name},
+                 output={"picture": False, "vtk": False, "points": False})
+        result = run(parse_case(d, "every.toml"), tmp_path / name)
+        assert result.summary.result.completed, result.summary.result.message
+        runs[name] = result.history
+    assert built_dofs(tmp_path / "petsc") > linear.DENSE_UP_TO
+    a, b = runs["superlu"]["F_axial"], runs["petsc"]["F_axial"]
+    np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * np.abs(a).max())
+
+
 def test_rp_joints_through_petsc_krylov_take_the_schur_field_split(tmp_path):
     """RP joints between the slabs of a 3D stack (saddle points), pressed, then dragged until a joint
     slides: petsc-gamg and petsc-hypre (GMRES with PETSc's Schur field split: the AMG on the

@@ -11,7 +11,8 @@ from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
 from rockfrac.solve.fallback import Handover
 from rockfrac.solve.linear import AMG_FROM_3D
-from rockfrac.solve.petsc import KspFactor, OneFactorAlive, run_ksp, saddle_options, split_fields
+from rockfrac.solve.petsc import (MUMPS_SADDLE_WORKSPACE, KspFactor, OneFactorAlive, run_ksp, saddle_options,
+                                 split_fields)
 
 
 class _Factor(KspFactor):
@@ -61,7 +62,10 @@ class DistributedSolver(OneFactorAlive):
         prefix = f"rockfrac_{self.name.replace('-', '_')}_"
         ksp.setOptionsPrefix(prefix)
         opts = PETSc.Options()
-        for k, v in (saddle_options(self.options) if saddle else self.options).items():
+        options = saddle_options(self.options) if saddle else dict(self.options)
+        if layout.has_multipliers and options.get("pc_factor_mat_solver_type") == "mumps":
+            options["mat_mumps_icntl_14"] = MUMPS_SADDLE_WORKSPACE  # MUMPS's LU of the whole saddle point
+        for k, v in options.items():
             opts[prefix + k] = v
         owned: tuple = ()
         if saddle:

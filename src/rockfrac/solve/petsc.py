@@ -173,6 +173,14 @@ class _PetscBackend(OneFactorAlive, _Backend):
         return ksp, opts, prefix
 
 
+# MUMPS's ICNTL(14), its workspace beyond the analysis's estimate [%] where the matrix is a saddle point
+# (RP multipliers: zero diagonal entries, pivots delayed off the diagonal). MUMPS's default (20) ran out
+# (INFO(1) = -9, reported as a singular tangent) on RP surfaces on every edge of the 4 x 6 specimen,
+# where 100 ran them, and 100 ran out on the turned inclusion's annulus (tests/test_smoothed_normals.py)
+# on 2 ranks, where 400 ran it.
+MUMPS_SADDLE_WORKSPACE = "400"
+
+
 class PetscDirect(_PetscBackend):
     """LU by MUMPS inside PETSc (one process)."""
 
@@ -183,7 +191,9 @@ class PetscDirect(_PetscBackend):
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
         self._release_last()
         m = self._matrix(a)
-        ksp, _, _ = self._ksp(m)
+        ksp, opts, prefix = self._ksp(m)
+        if not np.all(sp.csr_matrix(a).diagonal()):  # a saddle point: pivots off the diagonal
+            opts[prefix + "mat_mumps_icntl_14"] = MUMPS_SADDLE_WORKSPACE
         ksp.setFromOptions()
         return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")
 

@@ -278,9 +278,8 @@ def _inclusion_msh() -> Path:
 def inclusion_case() -> dict:
     """EP surfaces on every edge of an annulus and round the inclusion it holds, smoothed normals (the
     set's frames made from the whole mesh, on rank 0): the inclusion turns, sliding at its polygon's
-    vertices, on the points of both ranks. (RP there stops at its first step on ranks, with a singular
-    tangent, with smoothed normals or without: the annulus's rigid-plastic surfaces on every edge,
-    held on its outer circle; on one process it runs. Not yet found.)"""
+    vertices, on the points of both ranks. (RP there, on 2 ranks, stops in its 8th step: an RP return
+    fails at min_step, where one process with PARDISO runs the turn. Not yet found.)"""
     from test_smoothed_normals import inclusion_case as turned
 
     case = turned(_inclusion_msh(), "ep", "smoothed")

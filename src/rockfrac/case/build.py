@@ -37,6 +37,7 @@ from rockfrac.elements.ede_nodal_parts import HeldEnrichment
 from rockfrac.elements.solid import SolidGroup
 from rockfrac.errors import CaseError
 from rockfrac.mesh import Mesh
+from rockfrac.mesh.interfaces import tied_nodes
 from rockfrac.mesh.partition import Partition, RankPartition
 from rockfrac.output.history import Monitor
 from rockfrac.model import Model
@@ -187,11 +188,13 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
     cohesives: list = []
     extra_part = []  # the owning rank of each rigid-plastic point's multipliers, set after set
     extra_counts, own_extras, offset = [], [], 0  # or each set's count on every rank, and this rank's own
+    smoothed = share is None and any(section.smoothing is not None for section in case.cohesive_sets)
+    root = tied_nodes(mesh) if smoothed else None  # each copy's node, made once for every smoothed set
     for k, section in enumerate(case.cohesive_sets):
         junction = None
         if share is None:
             cells = set_cells[k]
-            points = set_points(section, mesh, cells)
+            points = set_points(section, mesh, cells, root)
             total = points.n
         else:  # the rank's points (on the rank of their first interface cell), from rank 0
             mine = share.cohesive[k]

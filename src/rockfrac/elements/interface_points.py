@@ -234,8 +234,7 @@ def smoothed_normals(points: InterfacePoints, node: np.ndarray, max_angle: float
         return points
     d = points.dim
     normal = points.frame[:, -1]
-    _, group = np.unique(_facets(normal, np.asarray(node), max_angle), return_inverse=True)
-    group = group.ravel()
+    group = _facets(normal, np.asarray(node), max_angle)  # labels 0 .. n_facets - 1
     n_groups = int(group.max()) + 1
     order = np.argsort(group, kind="stable")
     first = order[np.searchsorted(group[order], np.arange(n_groups))]  # each facet's first point

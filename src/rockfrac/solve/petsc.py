@@ -192,7 +192,7 @@ class PetscDirect(_PetscBackend):
         self._release_last()
         m = self._matrix(a)
         ksp, opts, prefix = self._ksp(m)
-        if not np.all(sp.csr_matrix(a).diagonal()):  # a saddle point: pivots off the diagonal
+        if not np.all(a.diagonal()):  # a saddle point: pivots off the diagonal
             opts[prefix + "mat_mumps_icntl_14"] = MUMPS_SADDLE_WORKSPACE
         ksp.setFromOptions()
         return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")

@@ -85,7 +85,7 @@ def rockfrac_on_ranks(n: int, case: Path, out: Path, *extra: str) -> subprocess.
     return subprocess.run(cmd, env=MPI_ENV, capture_output=True, text=True, timeout=TIMEOUT)
 
 
-def serial_history(case: dict) -> dict:
+def serial_history(case: dict, solver: str = "auto") -> dict:
     built = build(parse_case(case, "serial"))
     rows: dict[str, list] = {"lam": [], "iterations": [], "path": [], "u": [], "f_int": []}
 
@@ -97,10 +97,11 @@ def serial_history(case: dict) -> dict:
         rows["f_int"].append(info.f_int.copy())
 
     newton, stepping = engine_options(built)
-    result = run_stages(built.model, built.stages, make_solver("auto"), newton, stepping, on_step,
+    result = run_stages(built.model, built.stages, make_solver(solver), newton, stepping, on_step,
                         u0=built.program.u0, f0=built.program.f0)
     out = {k: np.array(v) for k, v in rows.items()}
     out["message"] = np.array(result.message)
+    out["n_u"] = np.array(built.model.n_u)  # the displacements come first, then any multipliers
     return out
 
 
@@ -275,14 +276,13 @@ def _inclusion_msh() -> Path:
     return inclusion_msh(Path(tempfile.mkdtemp(prefix="rockfrac_inclusion_")) / "inclusion.msh")
 
 
-def inclusion_case() -> dict:
-    """EP surfaces on every edge of an annulus and round the inclusion it holds, smoothed normals (the
-    set's frames made from the whole mesh, on rank 0): the inclusion turns, sliding at its polygon's
-    vertices, on the points of both ranks. (RP there, on 2 ranks, stops in its 8th step: an RP return
-    fails at min_step, where one process with PARDISO runs the turn. Not yet found.)"""
+def inclusion_case(form: str = "ep") -> dict:
+    """EP or RP surfaces on every edge of an annulus and round the inclusion it holds, smoothed normals
+    (the set's frames made from the whole mesh, on rank 0): the inclusion turns, sliding at its polygon's
+    vertices, on the points of both ranks."""
     from test_smoothed_normals import inclusion_case as turned
 
-    case = turned(_inclusion_msh(), "ep", "smoothed")
+    case = turned(_inclusion_msh(), form, "smoothed")
     case["stages"][1]["steps"] = 5
     case["output"] = {"picture": False, "vtk": False, "points": False}
     return case
@@ -295,6 +295,8 @@ CASES = {
     "paper_rp": lambda: paper_case("rp", axial_steps=60, axial_displacement=1.5e-3),
     "bar_arc_length_rp": lambda: rp_bar_case("arc_length"),
     "inclusion_smoothed_ep": inclusion_case,
+    # its RP form: MUMPS's LU of the saddle point of surfaces on every edge, the junctions' circulations
+    "inclusion_smoothed_rp": lambda: inclusion_case("rp"),
     # RP surfaces on every edge, their multipliers unknowns: MUMPS's LU of the saddle point with room for
     # pivots off its zero diagonal (it ran out of workspace and stopped at the first step)
     "every_edge_rp": lambda: dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
@@ -327,10 +329,12 @@ CASES = {
 }
 
 
-def assert_same_history(par: dict, ser: dict, any_iterations: bool = False, u_rtol: float = 1e-9) -> None:
+def assert_same_history(par: dict, ser: dict, any_iterations: bool = False, u_rtol: float = 1e-9,
+                        circulating: bool = False) -> None:
     """any_iterations: the Newton iterations of a step may differ by more than one, their total by
-    at most 5 % (see CHATTY); u_rtol: the unknowns' tolerance, relative to a step's largest (see
-    CIRCULATING)."""
+    at most 5 % (see CHATTY); u_rtol: the unknowns' tolerance, relative to a step's largest;
+    circulating: the displacements alone compared (to u_rtol), the load factors and forces to 1e-8,
+    the multipliers only through the forces (see CIRCULATING)."""
     assert "error" not in par, str(par.get("error"))
     assert str(par["message"]) == str(ser["message"])
     assert par["lam"].shape == ser["lam"].shape
@@ -340,17 +344,26 @@ def assert_same_history(par: dict, ser: dict, any_iterations: bool = False, u_rt
     else:
         assert off.max() <= 1 and np.count_nonzero(off) <= 0.02 * off.size, np.flatnonzero(off)
     np.testing.assert_array_equal(par["path"], ser["path"])
-    assert np.abs(par["lam"] - ser["lam"]).max() <= 1e-9
-    for key, rtol in (("u", u_rtol), ("f_int", 1e-9)):
-        scale = np.maximum(np.abs(ser[key]).max(axis=1, keepdims=True), 1e-300)  # a held step: u = 0
-        assert (np.abs(par[key] - ser[key]) / scale).max() <= rtol, key
+    assert np.abs(par["lam"] - ser["lam"]).max() <= (1e-8 if circulating else 1e-9)
+    n = int(ser["n_u"]) if circulating else ser["u"].shape[1]
+    for key, rtol in (("u", u_rtol), ("f_int", 1e-8 if circulating else 1e-9)):
+        a, b = par[key][:, :n], ser[key][:, :n]
+        scale = np.maximum(np.abs(b).max(axis=1, keepdims=True), 1e-300)  # a held step: u = 0
+        assert (np.abs(a - b) / scale).max() <= rtol, key
 
 
-# Cases whose unknowns agree to less than 1e-9: RP pairs held shut on loops round every node, whose
-# multipliers' circulation only the junctions' perturbed-Lagrangian term fixes (JUNCTION_EPS), so
-# round-off moves it by 1e-8 of the tractions (measured 8e-9 on 2 ranks; the displacements agree to
-# 1e-23 of the largest, the forces to 4e-15)
+# Cases of RP pairs held shut on loops round every node, whose multipliers' circulation only the
+# junctions' perturbed-Lagrangian term fixes (JUNCTION_EPS = 1e-8): Newton's tolerance fixes it to
+# about tol / JUNCTION_EPS, so the multipliers of two solvers may differ by more than their
+# displacements do. The 4 x 6 specimen's every-edge RP, held shut: multipliers 8e-9 apart on 2 ranks
+# (the displacements to 1e-23 of the largest, the forces to 4e-15), compared whole to 1e-7. The
+# turned inclusion's RP: its junction multipliers are 2e-4 apart (serial PARDISO against MUMPS on 2
+# ranks; 7e-3 between serial MUMPS and the ranks'), and the activation located in the turn's first
+# step takes this circulation's tractions, so its load factor is 4e-9 apart (serial MUMPS against 2
+# ranks); its displacements agree to 1.4e-7 of a step's largest (at that step), its forces to 2.2e-9
+# (measured 2026-12-01).
 CIRCULATING = {"every_edge_rp": 1e-7}
+DISPLACEMENTS = {"inclusion_smoothed_rp": 1e-6}  # compared on the displacements alone (circulating=True)
 
 
 # Cases whose Newton iterations per step are not a test of the ranks: at the kink of the bilinear
@@ -365,7 +378,7 @@ CIRCULATING = {"every_edge_rp": 1e-7}
 # differ from their second or third step (at 1e-17), and the iterations of a step past the peak (35
 # or 38) by 2 in some runs: 411, 413 and 415 in all over four runs of the same code (2026-11-28),
 # every step on the same solution.
-CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length"}
+CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
 
 
 # on 2 ranks only: the heaviest, and those whose 3 ranks repeat others' (cohesive surfaces and path
@@ -377,7 +390,7 @@ CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length"}
 # in 0.7 s, 8 s on the locally tracked band, 16 s on the nodal one (measured 2026-11-30).
 SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets", "plane_nodal_3d", "grains_ep", "cmod_opening",
         "bar_arc_length", "bar_energy", "bar_arc_length_rp", "band_none", "band_local", "joint_2d_cracks",
-        "band_nodal", "inclusion_smoothed_ep"}
+        "band_nodal", "inclusion_smoothed_ep", "inclusion_smoothed_rp"}
 
 
 def plastic_cylinder_case() -> dict:
@@ -398,8 +411,15 @@ def nodal_band_60_case() -> dict:
 REFERENCES = {**CASES, "cylinder": plastic_cylinder_case, "joint": joint_case, "band_nodal_60": nodal_band_60_case}
 
 
+# Cases whose serial reference is solved by MUMPS, as the ranks' are: the turned inclusion's RP saddle
+# points, whose PARDISO solves leave relative residuals of 5e-11 to 3e-10 (perturbed pivots), so that
+# most of its steps take one more Newton iteration on one process (33 in all against 24 on 2 ranks;
+# 23 with MUMPS on one)
+SERIAL_SOLVER = {"inclusion_smoothed_rp": "petsc"}
+
+
 def reference_history(name: str) -> dict:
-    return serial_history(REFERENCES[name]())
+    return serial_history(REFERENCES[name](), SERIAL_SOLVER.get(name, "auto"))
 
 
 @functools.cache
@@ -453,6 +473,8 @@ def test_distributed_history_equals_serial(name, n):
         assert ser["iterations"].max() == 2  # held shut: a linear step, its correction and the check
     elif name == "inclusion_smoothed_ep":
         assert ser["iterations"].max() == 2  # the boundary yields (an elastic step takes one iteration)
+    elif name == "inclusion_smoothed_rp":
+        assert ser["iterations"].max() >= 3  # points switch between held and sliding
     elif name == "breakout_initial":
         assert ser["iterations"].max() >= 3  # surfaces yield in the run
     elif name == "plane_nodal_3d":
@@ -464,7 +486,8 @@ def test_distributed_history_equals_serial(name, n):
     else:
         assert ser["iterations"].max() >= 4  # the surface yields within the run
     par = distributed_histories(n)[name]
-    assert_same_history(par, ser, any_iterations=name in CHATTY, u_rtol=CIRCULATING.get(name, 1e-9))
+    assert_same_history(par, ser, any_iterations=name in CHATTY,
+                        u_rtol=CIRCULATING.get(name, DISPLACEMENTS.get(name, 1e-9)), circulating=name in DISPLACEMENTS)
     # each rank ran on its piece of the mesh: its own cells and, with embedded cracks, the cells
     # sharing a side (nodal cracks: a node) with them
     whole = int(par["whole_cells"][0])

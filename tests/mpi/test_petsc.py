@@ -137,28 +137,39 @@ def test_a_path_following_rp_run_through_petsc_gives_the_serial_history(tmp_path
     assert np.abs(np.asarray(a["newton_iterations"]) - np.asarray(b["newton_iterations"])).max() <= 1
 
 
-def test_rp_surfaces_on_every_edge_through_petsc_give_superlus_history(tmp_path):
+def test_rp_surfaces_on_every_edge_through_petsc_give_superlus_history(tmp_path, monkeypatch):
     """RP surfaces on every edge of the 4 x 6 specimen, held shut: a saddle point whose multiplier rows
     have zero diagonals, so MUMPS pivots off the diagonal beyond its analysis's workspace. With
-    its default room it stopped at the first step (INFO(1) = -9, a "singular tangent"); given room
-    (rockfrac.solve.petsc.MUMPS_SADDLE_WORKSPACE) it gives SuperLU's loads."""
+    its default room (ICNTL(14) = 20 %) it stopped at the first step (INFOG(1) = -9, a "singular
+    tangent"). Started with the saddle points' room (rockfrac.solve.petsc.MUMPS_SADDLE_WORKSPACE) it
+    gives SuperLU's loads at once; started with MUMPS's default, it runs out, factorizes again with
+    twice the room until it does not, says so in run.log, and gives the same loads."""
     import sys
 
     sys.path.insert(0, str(ROOT / "tests"))
     from conftest import EVERY_EDGE
 
+    from rockfrac.solve import petsc
     from rockfrac.studies import table1
 
-    runs = {}
-    for name in ("superlu", "petsc"):
+    runs, logs = {}, {}
+    for name, start in (("superlu", None), ("petsc", None), ("petsc", 20)):
+        if start is not None:
+            monkeypatch.setattr(petsc, "MUMPS_SADDLE_WORKSPACE", start)
+        label = f"{name}_{start}"
         d = dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"), solver={"linear": name},
                  output={"picture": False, "vtk": False, "points": False})
-        result = run(parse_case(d, "every.toml"), tmp_path / name)
+        result = run(parse_case(d, "every.toml"), tmp_path / label)
         assert result.summary.result.completed, result.summary.result.message
-        runs[name] = result.history
-    assert built_dofs(tmp_path / "petsc") > linear.DENSE_UP_TO
-    a, b = runs["superlu"]["F_axial"], runs["petsc"]["F_axial"]
-    np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * np.abs(a).max())
+        runs[label], logs[label] = result.history, (tmp_path / label / "run.log").read_text()
+    assert built_dofs(tmp_path / "petsc_None") > linear.DENSE_UP_TO
+    a = runs["superlu_None"]["F_axial"]
+    for label in ("petsc_None", "petsc_20"):
+        np.testing.assert_allclose(runs[label]["F_axial"], a, rtol=1e-9, atol=1e-9 * np.abs(a).max())
+    assert "ran out of workspace" not in logs["petsc_None"]
+    grown = [line for line in logs["petsc_20"].splitlines() if "ran out of workspace" in line]
+    assert grown and "ICNTL(14) = 20 %" in grown[0]  # from MUMPS's default, then doubled: once a run
+    assert len(grown) == len(set(grown))  # the room that worked is kept for the next factorizations
 
 
 def test_rp_joints_through_petsc_krylov_take_the_schur_field_split(tmp_path):

@@ -86,5 +86,8 @@ def run_distributed(built: Built, on_step: Callable[[StepInfo], None],
     solver = distributed_solver(built.case.solver.linear.value, built.model.n_dofs_global, built.mesh.dim,
                                 any(isinstance(g, HeldEnrichment) for g in built.model.groups))
     log(f"linear solver: {solver.name} on {built.model.comm.Get_size()} ranks")  # type: ignore[attr-defined]
-    return run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
-                      u0=built.program.u0, f0=built.program.f0)
+    result = run_stages(built.model, built.stages, solver, newton, stepping, on_step, log,
+                        u0=built.program.u0, f0=built.program.f0)
+    for note in solver.notes():
+        log(f"linear solver: {note}")
+    return result

@@ -11,8 +11,7 @@ from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
 from rockfrac.solve.fallback import Handover
 from rockfrac.solve.linear import AMG_FROM_3D
-from rockfrac.solve.petsc import (MUMPS_SADDLE_WORKSPACE, KspFactor, OneFactorAlive, run_ksp, saddle_options,
-                                 split_fields)
+from rockfrac.solve.petsc import KspFactor, MumpsRoom, run_ksp, saddle_options, split_fields
 
 
 class _Factor(KspFactor):
@@ -35,7 +34,7 @@ class _Factor(KspFactor):
             x.destroy()
 
 
-class DistributedSolver(OneFactorAlive):
+class DistributedSolver(MumpsRoom):
     """A KSP configured by PETSc options on the distributed tangent."""
 
     name = ""
@@ -47,33 +46,38 @@ class DistributedSolver(OneFactorAlive):
         return None
 
     def notes(self) -> list[str]:
-        return []
+        return self.workspace_notes()
 
     def factorize(self, a: DistributedMatrix) -> _Factor:
-        PETSc = petsc()
         layout = a.layout
         saddle = self.krylov and layout.has_multipliers
         modes = layout.rigid_modes() if self.rigid_modes else None
         if modes is not None and not saddle:
             a.mat.setNearNullSpace(modes)
-        self._release_last()
-        ksp = PETSc.KSP().create(comm=layout.comm)
-        ksp.setOperators(a.mat)
-        prefix = f"rockfrac_{self.name.replace('-', '_')}_"
-        ksp.setOptionsPrefix(prefix)
-        opts = PETSc.Options()
         options = saddle_options(self.options) if saddle else dict(self.options)
-        if layout.has_multipliers and options.get("pc_factor_mat_solver_type") == "mumps":
-            options["mat_mumps_icntl_14"] = MUMPS_SADDLE_WORKSPACE  # MUMPS's LU of the whole saddle point
-        for k, v in options.items():
-            opts[prefix + k] = v
-        owned: tuple = ()
-        if saddle:
-            ksp.getPC().setType("fieldsplit")
-            owned = layout.fields()
-            split_fields(ksp, owned[0], owned[1], modes)
-        ksp.setFromOptions()
-        return self._ready(_Factor(ksp, layout, *owned), f"PETSc {self.name} set-up")
+
+        def make(room: int | None) -> _Factor:
+            self._release_last()
+            ksp = petsc().KSP().create(comm=layout.comm)
+            ksp.setOperators(a.mat)
+            prefix = f"rockfrac_{self.name.replace('-', '_')}_"
+            ksp.setOptionsPrefix(prefix)
+            opts = petsc().Options()
+            for k, v in options.items():
+                opts[prefix + k] = v
+            if room is not None:
+                opts[prefix + "mat_mumps_icntl_14"] = str(room)
+            owned: tuple = ()
+            if saddle:
+                ksp.getPC().setType("fieldsplit")
+                owned = layout.fields()
+                split_fields(ksp, owned[0], owned[1], modes)
+            ksp.setFromOptions()
+            return self._ready(_Factor(ksp, layout, *owned), f"PETSc {self.name} set-up")
+
+        # MUMPS's LU of the whole saddle point: room for pivots off its zero diagonal
+        lu = options.get("pc_factor_mat_solver_type") == "mumps"
+        return self._with_room(make, saddle=layout.has_multipliers and lu)
 
     def solve(self, a: DistributedMatrix, b: np.ndarray) -> np.ndarray:
         return self.factorize(a).solve(b)

@@ -27,7 +27,7 @@ backends are simply not installed (``available()``). The options each backend se
 from __future__ import annotations
 
 import weakref
-from typing import TypeVar
+from typing import Callable, TypeVar
 
 import numpy as np
 import scipy.sparse as sp
@@ -173,29 +173,84 @@ class _PetscBackend(OneFactorAlive, _Backend):
         return ksp, opts, prefix
 
 
-# MUMPS's ICNTL(14), its workspace beyond the analysis's estimate [%] where the matrix is a saddle point
-# (RP multipliers: zero diagonal entries, pivots delayed off the diagonal). MUMPS's default (20) ran out
-# (INFO(1) = -9, reported as a singular tangent) on RP surfaces on every edge of the 4 x 6 specimen,
-# where 100 ran them, and 100 ran out on the turned inclusion's annulus (tests/test_smoothed_normals.py)
-# on 2 ranks, where 400 ran it.
-MUMPS_SADDLE_WORKSPACE = "400"
+# MUMPS's ICNTL(14), its workspace beyond the analysis's estimate [%], to start from where the matrix is a
+# saddle point (RP multipliers: zero diagonal entries, pivots delayed off the diagonal). MUMPS's default
+# (20) ran out (INFO(1) = -9) on RP surfaces on every edge of the 4 x 6 specimen, where 100 ran them,
+# and 100 ran out on the turned inclusion's annulus (tests/test_smoothed_normals.py) on 2 ranks, where
+# 400 ran it. Where it still runs out, the LU is made again with twice the room (MumpsRoom).
+MUMPS_SADDLE_WORKSPACE = 400
+# MUMPS's INFOG(1) codes whose cure is a larger ICNTL(14) (its users' guide, "Error diagnostics"):
+# integer or real workspace too small for the factorization (-8, -9), the solution (-11, -14), the
+# iterative refinement (-12, -15), or a send or reception buffer too small (-17, -20)
+MUMPS_OUT_OF_WORKSPACE = (-8, -9, -11, -12, -14, -15, -17, -20)
+MUMPS_MAX_WORKSPACE = 12800  # the most room given [%] before the factorization counts as failed
 
 
-class PetscDirect(_PetscBackend):
+def mumps_shortfall(ksp) -> tuple[int, int] | None:
+    """(INFOG(1), ICNTL(14)) where a set-up KSP's LU by MUMPS ran out of workspace; None where it did
+    not or the KSP is no MUMPS LU. INFOG is global: every rank gets the same answer."""
+    pc = ksp.getPC()
+    if pc.getType() != "lu" or pc.getFactorSolverType() != "mumps":
+        return None
+    factor = pc.getFactorMatrix()
+    info = factor.getMumpsInfog(1)
+    return (info, factor.getMumpsIcntl(14)) if info in MUMPS_OUT_OF_WORKSPACE else None
+
+
+class MumpsRoom(OneFactorAlive):
+    """An LU by MUMPS made again, with twice its workspace (ICNTL(14)), where MUMPS runs out of it,
+    up to MUMPS_MAX_WORKSPACE; the room that worked is kept for the next factorizations and the run's
+    log says how it grew. (PETSc reports a factorization out of workspace as a failed preconditioner,
+    and Newton as a singular tangent.)"""
+
+    workspace: int | None = None  # ICNTL(14) [%] of the last factorization; None: MUMPS's default
+    _grown: tuple[str, ...] = ()  # each time the room grew, for the run's log
+
+    def _with_room(self, make: Callable[[int | None], F], saddle: bool) -> F:
+        """make(ICNTL(14) or None) until its factor is not short of workspace."""
+        room = self.workspace
+        if saddle:
+            room = max(room or 0, MUMPS_SADDLE_WORKSPACE)
+        while True:
+            factor = make(room)
+            short = mumps_shortfall(factor._ksp)
+            if short is None:
+                self.workspace = room
+                return factor
+            info, had = short
+            factor.release()
+            if 2 * had > MUMPS_MAX_WORKSPACE:
+                raise SolverFailed(f"MUMPS's LU ran out of workspace (INFOG(1) = {info}) with ICNTL(14) = "
+                                   f"{had} %, the most rockfrac gives it is {MUMPS_MAX_WORKSPACE} %")
+            room = 2 * had
+            self._grown += (f"MUMPS ran out of workspace (INFOG(1) = {info}) with ICNTL(14) = {had} %: "
+                            f"factorized again with {room} %",)
+
+    def workspace_notes(self) -> list[str]:
+        return list(self._grown)
+
+
+class PetscDirect(MumpsRoom, _PetscBackend):
     """LU by MUMPS inside PETSc (one process)."""
 
     name = "petsc"
     dense_up_to = DENSE_UP_TO
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 
+    def notes(self) -> list[str]:
+        return self.workspace_notes()
+
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
-        self._release_last()
-        m = self._matrix(a)
-        ksp, opts, prefix = self._ksp(m)
-        if not np.all(a.diagonal()):  # a saddle point: pivots off the diagonal
-            opts[prefix + "mat_mumps_icntl_14"] = MUMPS_SADDLE_WORKSPACE
-        ksp.setFromOptions()
-        return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")
+        def make(room: int | None) -> _PetscFactor:
+            self._release_last()
+            m = self._matrix(a)
+            ksp, opts, prefix = self._ksp(m)
+            if room is not None:
+                opts[prefix + "mat_mumps_icntl_14"] = str(room)
+            ksp.setFromOptions()
+            return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")
+
+        return self._with_room(make, saddle=not np.all(a.diagonal()))  # zero diagonals: pivots off it
 
 
 class PetscGAMG(_PetscBackend):

@@ -9,6 +9,8 @@ Tasks:
   launch, its results under ``NAME.KEY``; a CaseError is that case's ``NAME.error``.
 - ``history_auto_amg``: ``history`` with 'auto' taking its large-3D choice at any size (GMRES + GAMG
   handing over to MUMPS's LU), and the solver's name.
+- ``history_short_room``: ``history`` with MUMPS's LU of saddle points started from its default
+  workspace (ICNTL(14) = 20 %), and the run's log lines.
 - ``system``: assemble at a displacement field given in the case file's ``"u"``; the global
   tangent (Dirichlet rows of the first stage applied) in rockfrac's numbering, gathered from every
   rank's owned rows, and the residual; the ownership of cells and interface cells, and the ghost
@@ -58,6 +60,7 @@ def history(built, comm) -> dict:
         out["piece_cells"], out["whole_cells"], out["seen_cells"] = (np.array(v) for v in zip(*piece))
     out["message"] = np.array(result.message)
     out["solver_line"] = np.array(log[0] if log else "")
+    out["log"] = np.array("\n".join(log))
     return out
 
 
@@ -205,6 +208,10 @@ def main() -> None:
         import rockfrac.parallel.solvers as solvers
 
         solvers.AMG_FROM_3D = 0
+    if task == "history_short_room":
+        import rockfrac.solve.petsc as petsc
+
+        petsc.MUMPS_SADDLE_WORKSPACE = 20
     if task == "histories":
         result = histories(data["cases"], comm, case_file)
     else:

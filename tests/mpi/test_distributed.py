@@ -454,6 +454,18 @@ def distributed_histories(n: int) -> dict[str, dict]:
             for name in HISTORIES[n]}
 
 
+def test_mumps_out_of_workspace_on_ranks_factorizes_again_with_twice_the_room(tmp_path):
+    """The every-edge RP case on 2 ranks with MUMPS's LU started from its default workspace (20 %),
+    which its saddle point outgrows: each rank's factor is made again with twice the room until it
+    fits (INFOG(1) is global, so every rank agrees), run.log says so once a doubling, and the run
+    gives the serial history as with the saddle points' room."""
+    name = "every_edge_rp"
+    par = mpirun(2, "history_short_room", CASES[name](), tmp_path)
+    assert_same_history(par, reference(name), u_rtol=CIRCULATING[name])
+    grown = [line for line in str(par["log"]).splitlines() if "ran out of workspace" in line]
+    assert grown and "ICNTL(14) = 20 %" in grown[0] and len(grown) == len(set(grown))
+
+
 @pytest.mark.parametrize("name, n", [(name, n) for n in (2, 3) for name in HISTORIES[n]])
 def test_distributed_history_equals_serial(name, n):
     case = CASES[name]()

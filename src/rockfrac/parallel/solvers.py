@@ -11,7 +11,7 @@ from rockfrac.parallel.layout import Layout, petsc
 from rockfrac.parallel.model import DistributedMatrix
 from rockfrac.solve.fallback import Handover
 from rockfrac.solve.linear import AMG_FROM_3D
-from rockfrac.solve.petsc import KspFactor, MumpsRoom, run_ksp, saddle_options, split_fields
+from rockfrac.solve.petsc import KspFactor, MumpsRoom, run_ksp, saddle_options, set_room, split_fields
 
 
 class _Factor(KspFactor):
@@ -65,8 +65,7 @@ class DistributedSolver(MumpsRoom):
             opts = petsc().Options()
             for k, v in options.items():
                 opts[prefix + k] = v
-            if room is not None:
-                opts[prefix + "mat_mumps_icntl_14"] = str(room)
+            set_room(opts, prefix, room)
             owned: tuple = ()
             if saddle:
                 ksp.getPC().setType("fieldsplit")

@@ -197,6 +197,15 @@ def mumps_shortfall(ksp) -> tuple[int, int] | None:
     return (info, factor.getMumpsIcntl(14)) if info in MUMPS_OUT_OF_WORKSPACE else None
 
 
+def set_room(opts, prefix: str, room: int | None) -> None:
+    """MUMPS's ICNTL(14) in PETSc's options for the KSP of ``prefix``: ``room`` [%], or MUMPS's default
+    (an earlier value under the same prefix taken out of the options, which outlive the KSPs)."""
+    if room is None:
+        opts.delValue(prefix + "mat_mumps_icntl_14")
+    else:
+        opts[prefix + "mat_mumps_icntl_14"] = str(room)
+
+
 class MumpsRoom(OneFactorAlive):
     """An LU by MUMPS made again, with twice its workspace (ICNTL(14)), where MUMPS runs out of it,
     up to MUMPS_MAX_WORKSPACE; the room that worked is kept for the next factorizations and the run's
@@ -245,8 +254,7 @@ class PetscDirect(MumpsRoom, _PetscBackend):
             self._release_last()
             m = self._matrix(a)
             ksp, opts, prefix = self._ksp(m)
-            if room is not None:
-                opts[prefix + "mat_mumps_icntl_14"] = str(room)
+            set_room(opts, prefix, room)
             ksp.setFromOptions()
             return self._ready(_PetscFactor(ksp, m), "PETSc LU (MUMPS)")
 

@@ -18,7 +18,7 @@ case's kn over R or K, so that eta k, the viscous stress per jump rate, stays th
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
-run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked); ``--normals smoothed``: every set's normals smoothed at its vertices (likewise). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
+run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked); ``--normals smoothed``: every set's normals smoothed at its vertices (likewise); ``--points edges``: every set's points on its edges (likewise). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
 A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start; with no
 row added, the table and its json are left as they were). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
@@ -127,7 +127,8 @@ def run_key(rec: dict) -> str:
     stop, aug, pen = rec.get("stop_fraction", 0.5), rec.get("augmentation"), rec.get("penalty")
     return (f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
             + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else "") + (" elim" if rec.get("elimination") else "")
-            + (" smoothed" if rec.get("normals") == "smoothed" else ""))
+            + (" smoothed" if rec.get("normals") == "smoothed" else "")
+            + (" edges" if rec.get("points_per") == "edges" else ""))
 
 
 def solver_label(rec: dict) -> str:
@@ -209,9 +210,12 @@ def variant_case(base: dict, args: argparse.Namespace, variant: str, steps: int,
     if args.normals == "smoothed":
         for coh in sections:
             coh["normals"] = "smoothed"
+    if args.points == "edges":
+        for coh in sections:
+            coh["points"] = "edges"
     name = (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
             + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else "")
-            + ("_smoothed" if args.normals == "smoothed" else ""))
+            + ("_smoothed" if args.normals == "smoothed" else "") + ("_edges" if args.points == "edges" else ""))
     return d, name, eta
 
 
@@ -234,6 +238,9 @@ def main() -> None:
     ap.add_argument("--normals", choices=("pairs", "smoothed"), default="pairs",
                     help="[cohesive] normals of every set (smoothed: averaged at a polygonal surface's vertices; the "
                          "run folder's name ends in _smoothed)")
+    ap.add_argument("--points", choices=("nodes", "edges"), default="nodes",
+                    help="[cohesive] points of every set (edges: one per edge, its mean jump and a moment on its "
+                         "rotation; the run folder's name ends in _edges)")
     ap.add_argument("--elimination", action="store_true",
                     help="[solver] elimination = true: a stalled Newton iteration solves its few stalled unknowns "
                          "alone (the run folder's name ends in _elim)")
@@ -321,6 +328,7 @@ def main() -> None:
                    "D_viscous": viscous, "energy_error": float(h["energy_error"][-1]), "ended": ended,
                    "viscosity": eta if variant.endswith("viscous") else None,
                    "augmentation": aug, "penalty": pen, "elimination": args.elimination, "normals": args.normals,
+                   "points_per": args.points,
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -347,6 +355,7 @@ def main() -> None:
         label += f", kn = {rec['penalty']:g} Pa/m" if rec.get("penalty") else ""
         label += ", elimination" if rec.get("elimination") else ""
         label += ", smoothed normals" if rec.get("normals") == "smoothed" else ""
+        label += ", points on edges" if rec.get("points_per") == "edges" else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

@@ -92,6 +92,7 @@ def run(tmp_path):
 # in at the end (xdist's own reordering, by the number of tests in a file, sent the one-test 53 s
 # file among the last). Files not listed follow in pytest's order. A stale list costs balance only.
 LONGEST_FIRST = (
+    "test_edge_points.py",  # 95 s (2026-12-01)
     "test_examples.py",  # 74 s
     "test_nodal_3d.py",  # 68
     "test_resume_and_vtk.py",  # 68

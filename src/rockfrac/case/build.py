@@ -172,6 +172,10 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         case = resolve(case, path)
         mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     else:
+        edges = [k + 1 for k, c in enumerate(case.cohesive_sets) if c.points == "edges"]
+        if edges:  # every rank refuses, before rank 0 cuts the shares
+            raise CaseError(f"{path}: [cohesive] (cohesive {edges[0]}): points = 'edges' runs on one process "
+                            "(its points are not shared out to MPI ranks): points = 'nodes' there")
         share = distribution.share(lambda n, split: cut_shares(resolve(case, path), path, n, split))
         case, mesh, set_cells = share.case, share.mesh, []
     part = share.partition if share is not None else None
@@ -207,8 +211,8 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
                 offset += total
         groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback, junction)
         for g in groups:
-            if isinstance(g, CohesiveRP):
-                g.total_points = total  # the multipliers are numbered over the whole set, on every rank
+            if isinstance(g, CohesiveRP):  # the multipliers are numbered over the whole set, on every rank
+                g.total_points = total if share is not None else g.points.n
         cohesives += groups
     extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
     held = [g for g in extras if isinstance(g, HeldEnrichment)]

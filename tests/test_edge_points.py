@@ -1,0 +1,172 @@
+"""[cohesive] points = 'edges' (rockfrac.elements.cse_edges): one point per edge on its mean jump, with an
+elastic moment on the edge's relative rotation, instead of one point per node pair."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from conftest import EVERY_EDGE, check_tied_every_edge
+
+from rockfrac.api import make_case
+from rockfrac.case.build import build
+from rockfrac.case.schema import CaseError, parse_case
+from rockfrac.elements.cse_edges import EdgeEP, EdgeRP
+from rockfrac.mesh import rock_tests as rt
+from rockfrac.output.csvout import read_csv
+from rockfrac.runner import run_case
+from rockfrac.studies import table1
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from fragmentation import grains_case  # noqa: E402
+
+RP_EDGES = dict(table1.CSE_LAW, form="rp", where="all", points="edges")
+EP_EDGES = dict(table1.CSE_LAW, form="ep", where="all", points="edges", kn=1e13, kt=1e13)
+
+
+def test_rp_edges_on_every_edge_held_shut_give_the_unsplit_solution(tmp_path):
+    """The patch test: RP edge points on every edge of the 4 x 6 specimen (every cell its own corners),
+    held shut by a uniform stress: the unsplit specimen's loads, no jump, and each edge's multipliers
+    are the tractions sigma . n. Edge points close no ring round a node: no junction term, no
+    circulation, and no warning about loops."""
+    run_case(parse_case(EVERY_EDGE), tmp_path / "a")
+    s = run_case(parse_case(dict(EVERY_EDGE, cohesive=RP_EDGES)), tmp_path / "b")
+    assert s.result.completed
+    group = s.built.cohesives[0]
+    assert isinstance(group, EdgeRP) and group.points.n == 38  # the 4 x 6 quads' internal edges
+    check_tied_every_edge(tmp_path / "a", tmp_path / "b", rtol=1e-9, jump=1e-15)
+    p = read_csv(tmp_path / "b" / "points.csv")
+    assert np.abs(p["T_t"]).max() < 1e-9 * np.abs(p["T_n"]).max()  # sigma . n has no shear on these edges
+    assert not [w for w in s.warnings or [] if "loops" in w]
+
+
+def _model(cohesive: dict):
+    built = build(parse_case(dict(EVERY_EDGE, cohesive=cohesive)))
+    model = built.model
+    model.set_dirichlet(built.stages[0].dirichlet)
+    return built, model
+
+
+@pytest.mark.parametrize("cohesive", [EP_EDGES, RP_EDGES], ids=["ep", "rp"])
+def test_edge_points_tangent_is_the_derivative_of_their_forces(cohesive):
+    """The consistent tangent of edge points, moment included, against central differences of the
+    internal forces, at a state where some points are plastic and others are not (EP: jumps of a few
+    strengths over kn; RP: multipliers of that size, and jumps)."""
+    built, model = _model(cohesive)
+    group = built.cohesives[0]
+    rng = np.random.default_rng(3)
+    u = np.zeros(model.n_dofs)
+    u[:model.n_u] = 3e-9 * rng.standard_normal(model.n_u)
+    if isinstance(group, EdgeRP):
+        u[group.lam_dofs] = 2e4 * rng.standard_normal(group.lam_dofs.shape)
+    u_n = np.zeros(model.n_dofs)
+
+    def forces(v: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        model.begin_step()
+        asm = model.assemble(v, u_n, np.zeros(model.n_dofs))
+        return asm.f_int, sp.csr_matrix(asm.matrix)
+
+    f0, a = forces(u)
+    plastic = int(np.count_nonzero(group.trial[:, group.mode] == 1.0))
+    assert 0 < plastic < group.points.n
+    columns = rng.choice(model.n_dofs, 40, replace=False)
+    for j in columns:
+        h = 1e-4 * (3e-9 if j < model.n_u else 2e4)
+        e = np.zeros(model.n_dofs)
+        e[j] = h
+        fd = (forces(u + e)[0] - forces(u - e)[0]) / (2 * h)
+        col = a[:, j].toarray().ravel()
+        assert np.linalg.norm(fd - col) <= 1e-6 * max(np.linalg.norm(col), 1e-30), j
+
+
+def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
+    """An edge whose normal jump runs linearly from -a to +a along it (mean zero, so the law's point sees
+    no jump): the moment's energy k L g^2 / 24 is the penalty's energy of that jump, int kn j(s)^2 / 2
+    ds = kn a^2 L / 6 (Gauss), and the edge's forces are that energy's gradient."""
+    built, model = _model(EP_EDGES)
+    group = built.cohesives[0]
+    assert isinstance(group, EdgeEP)
+    d, a, k = 2, 1e-7, 5
+    n = group.points.frame[k, 1]
+    m0, m1, p0, p1 = (group.jump_dofs[k, i * d:(i + 1) * d] for i in range(4))
+    u = np.zeros(model.n_dofs)
+    u[p0] += -0.5 * a * n
+    u[m0] -= -0.5 * a * n
+    u[p1] += 0.5 * a * n
+    u[m1] -= 0.5 * a * n
+    length = group.points.weight[k]
+    assert np.abs(group.jumps(u)[k]).max() < 1e-25
+
+    def energy(v: np.ndarray) -> float:  # the edge's moment
+        return 1e13 * length * group.rotation_jumps(v)[k] ** 2 / 24
+
+    j0, j1 = n @ (u[p0] - u[m0]), n @ (u[p1] - u[m1])
+    s, w = np.polynomial.legendre.leggauss(3)
+    jump = 0.5 * (j0 + j1) + 0.5 * (j1 - j0) * s  # the normal jump along the edge (its mean is zero)
+    assert energy(u) == pytest.approx(0.5 * 1e13 * np.sum(w * jump ** 2) * length / 2, rel=1e-12)
+    assert energy(u) == pytest.approx(1e13 * a * a * length / 6, rel=1e-12)
+    model.begin_step()
+    fe = group.evaluate(u, np.zeros(model.n_dofs)).fe[k]
+    for col, j in enumerate(group.jump_dofs[k]):
+        e = np.zeros(model.n_dofs)
+        e[j] = 1e-3 * a
+        grad = (energy(u + e) - energy(u - e)) / (2e-3 * a)
+        assert fe[col] == pytest.approx(grad, rel=1e-8, abs=1e-12 * np.abs(fe).max())
+
+
+def small_grains(form: str, points: str) -> dict:
+    """Two grains in a matrix, 8 x 16 mm (368 quads, 704 internal edges), surfaces on every edge
+    (three sets), viscous, compressed by 0.1 mm in 5 load steps: nodal RP points stop at 0.8 of it
+    (rings round the nodes hold them shut: benchmarks/README.md, "Points per edge")."""
+    d = grains_case(0.002, Path("."))
+    d["mesh"].update(width=0.008, height=0.016, n_grains=2, radius_min=0.0015, radius_max=0.0025)
+    d["output"] = {"vtk": False, "picture": False, "points": False}
+    stage = d["stages"][0]
+    stage.update(steps=5, control="load")
+    stage.pop("max_steps")
+    stage["displacement"]["top"]["y"] = -1e-4
+    stage["stop"]["below_peak_fraction"] = 0.05
+    for c in d["cohesive"]:
+        c.update(form=form, viscosity=2.5e-5, points=points)
+        if form == "rp":
+            del c["kn"], c["kt"]
+            c["augmentation"] = 2e12
+    return d
+
+
+def test_rp_edge_points_follow_ep_edge_points_where_nodal_rp_points_stall(run):
+    """Like for like: RP and EP edge points (r = kn = 2e12 Pa/m, one relaxation time) through the
+    compression of a small grain-matrix specimen with surfaces on every edge, past the load at which
+    nodal RP points stall. RP runs the stage in steps of EP's order and carries EP's load and
+    dissipation to 1 % and 3 %."""
+    h_ep, _, s_ep = run(small_grains("ep", "edges"), "ep")
+    h_rp, _, s_rp = run(small_grains("rp", "edges"), "rp")
+    assert s_ep.result.completed and s_rp.result.completed, s_rp.result.message
+    assert h_rp["D_dissipated"][-1] > 0.0  # surfaces have yielded and slid
+    assert h_rp["R_top_y"][-1] == pytest.approx(h_ep["R_top_y"][-1], rel=0.01)
+    assert h_rp["D_dissipated"][-1] == pytest.approx(h_ep["D_dissipated"][-1], rel=0.03)
+    assert s_rp.result.steps <= 2 * s_ep.result.steps
+
+
+def test_edge_points_refuse_what_they_do_not_do(tmp_path):
+    """points = 'edges' with smoothed normals, nested multipliers or IMPL-EX, in 3D, or with the
+    IMPL-EX fallback: a clear error before any step."""
+    for extra, word in (({"normals": "smoothed"}, "normals = 'smoothed'"),
+                        ({"multipliers": "nested"}, "multipliers = 'nested'")):
+        with pytest.raises(CaseError, match=word):
+            parse_case(dict(EVERY_EDGE, cohesive=dict(RP_EDGES, **extra)))
+    with pytest.raises(CaseError, match="integration = 'implex'"):
+        parse_case(dict(EVERY_EDGE, cohesive=dict(EP_EDGES, integration="implex")))
+    with pytest.raises(CaseError, match="fallback"):
+        build(parse_case(dict(EVERY_EDGE, cohesive=EP_EDGES, solver={"fallback": "implex"})))
+    msh = rt.box(tmp_path / "box.msh", (1.0, 1.0, 1.0), (2, 2, 2), element="tet4")
+    box = make_case(mesh={"kind": "gmsh", "file": str(msh)}, bulk={"E": 2e10, "nu": 0.25},
+                    cohesive=dict(RP_EDGES, augmentation=1e12),
+                    stages=[{"name": "p", "displacement": {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0}},
+                             "pressure": {"top": 1e6}}])
+    with pytest.raises(CaseError, match="is 2D"):
+        build(box)

@@ -150,6 +150,8 @@ def test_rp_edge_points_follow_ep_edge_points_where_nodal_rp_points_stall(run):
     assert h_rp["R_top_y"][-1] == pytest.approx(h_ep["R_top_y"][-1], rel=0.01)
     assert h_rp["D_dissipated"][-1] == pytest.approx(h_ep["D_dissipated"][-1], rel=0.03)
     assert s_rp.result.steps <= 2 * s_ep.result.steps
+    for h in (h_ep, h_rp):  # the work is the stored energy, the moments' included, and the dissipation
+        assert abs(h["energy_error"][-1]) <= 1e-7 * h["W_external"][-1]
 
 
 def test_edge_points_refuse_what_they_do_not_do(tmp_path):

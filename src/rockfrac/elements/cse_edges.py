@@ -86,6 +86,10 @@ class _OnEdges:
         """The moments' elastic energy sum k L g^2 / 24 [J/m]."""
         return float(np.sum(self.rotation_stiffness * self.points.weight * self.rotation_jumps(u) ** 2) / 24.0)
 
+    def elastic_energy(self, u: np.ndarray) -> float:
+        """The law's stored energy at the points and the moments' [J/m]."""
+        return super().elastic_energy(u) + self.moment_energy(u)  # type: ignore[misc]
+
     def _edge_rows(self, ev: Evaluation, u: np.ndarray) -> Evaluation:
         src, share, c, n4 = self._source, self._share, self._rotation, 4 * self.dim
         fe = ev.fe[:, src] * share

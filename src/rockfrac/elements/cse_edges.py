@@ -58,6 +58,7 @@ class _OnEdges:
     _second: np.ndarray  # (n, 2): each point's (m1, p1)
     _source: np.ndarray  # the point's row (minus, plus[, multiplier]) of each of the edge's rows
     _share: np.ndarray  # and the share it takes (half for each end's node, all of a multiplier's)
+    _share2: np.ndarray  # the shares' outer product, for the blocks
     _rotation: np.ndarray  # (n, 4 dim): g = rotation . u over (m0, m1, p0, p1)
 
     def _on_edges(self, m1: np.ndarray, p1: np.ndarray, multipliers: bool) -> None:
@@ -70,6 +71,7 @@ class _OnEdges:
         # each row of the edge's (m0, m1, p0, p1[, multiplier]): the point's row it takes, and its share
         self._source = np.concatenate([ar, ar, d + ar, d + ar] + ([2 * d + ar] if multipliers else []))
         self._share = np.concatenate([np.full(4 * d, 0.5)] + ([np.ones(d)] if multipliers else []))
+        self._share2 = np.outer(self._share, self._share)
         n = self.points.frame[:, 1]
         self._rotation = np.concatenate([n, -n, -n, n], axis=1)
 
@@ -91,9 +93,9 @@ class _OnEdges:
         return super().elastic_energy(u) + self.moment_energy(u)  # type: ignore[misc]
 
     def _edge_rows(self, ev: Evaluation, u: np.ndarray) -> Evaluation:
-        src, share, c, n4 = self._source, self._share, self._rotation, 4 * self.dim
-        fe = ev.fe[:, src] * share
-        ke = ev.ke[:, src[:, None], src[None, :]] * np.outer(share, share)
+        src, c, n4 = self._source, self._rotation, 4 * self.dim
+        fe = ev.fe[:, src] * self._share
+        ke = ev.ke[:, src[:, None], src[None, :]] * self._share2
         k = self.rotation_stiffness * self.points.weight / 12.0
         fe[:, :n4] += (k * self.rotation_jumps(u))[:, None] * c
         ke[:, :n4, :n4] += k[:, None, None] * c[:, :, None] * c[:, None, :]
@@ -112,10 +114,16 @@ class _OnEdges:
 
         return measure
 
-    def _parted(self, hit: np.ndarray) -> np.ndarray:
-        """Both node pairs (k, 2) of the separated edges ``hit``: a separated edge parts its whole length."""
+    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        """The nodal points' evaluation at the edges' mean jumps, on the edges' nodes, with the moments."""
+        return self._edge_rows(super().evaluate(u, u_n), u)  # type: ignore[misc]
+
+    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
+        """The separated edges' node pairs (k, 2), both of each (a separated edge parts its whole length),
+        and their length [m]."""
+        hit = self.law.separated(self.state, fraction)  # type: ignore[attr-defined]
         first = np.stack([self.points.minus[hit], self.points.plus[hit]], axis=1)
-        return np.concatenate([first, self._second[hit]])
+        return np.concatenate([first, self._second[hit]]), float(self.points.weight[hit].sum())
 
 
 class EdgeEP(_OnEdges, CohesiveEP):
@@ -127,13 +135,6 @@ class EdgeEP(_OnEdges, CohesiveEP):
         assert law.kn is not None
         self.rotation_stiffness = float(law.kn)
         self._on_edges(m1, p1, multipliers=False)
-
-    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
-        return self._edge_rows(super().evaluate(u, u_n), u)
-
-    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
-        hit = self.law.separated(self.state, fraction)
-        return self._parted(hit), float(self.points.weight[hit].sum())
 
 
 class EdgeRP(_OnEdges, CohesiveRP):
@@ -153,10 +154,3 @@ class EdgeRP(_OnEdges, CohesiveRP):
         held = np.isin(self.jump_dofs, dirichlet)
         out = [self.lam_dofs[np.all(held[:, a::d], axis=1), a] for a in range(d)]
         return np.concatenate(out).astype(np.int64)
-
-    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
-        return self._edge_rows(super().evaluate(u, u_n), u)
-
-    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
-        hit = self.law.separated(self.state, fraction)
-        return self._parted(hit), float(self.points.weight[hit].sum())

@@ -45,9 +45,6 @@ class DistributedSolver(MumpsRoom):
     def begin_step(self) -> None:
         return None
 
-    def notes(self) -> list[str]:
-        return self.workspace_notes()
-
     def factorize(self, a: DistributedMatrix) -> _Factor:
         layout = a.layout
         saddle = self.krylov and layout.has_multipliers

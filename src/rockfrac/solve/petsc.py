@@ -235,7 +235,8 @@ class MumpsRoom(OneFactorAlive):
             self._grown += (f"MUMPS ran out of workspace (INFOG(1) = {info}) with ICNTL(14) = {had} %: "
                             f"factorized again with {room} %",)
 
-    def workspace_notes(self) -> list[str]:
+    def notes(self) -> list[str]:
+        """What the run's log says: each time the room grew."""
         return list(self._grown)
 
 
@@ -245,9 +246,6 @@ class PetscDirect(MumpsRoom, _PetscBackend):
     name = "petsc"
     dense_up_to = DENSE_UP_TO
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-
-    def notes(self) -> list[str]:
-        return self.workspace_notes()
 
     def _factorize(self, a: sp.csr_matrix) -> Factorization:
         def make(room: int | None) -> _PetscFactor:

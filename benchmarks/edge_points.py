@@ -10,7 +10,7 @@ whole (benchmarks/README.md, "Smoothed normals"). This probe compares, on the sm
   per edge);
 - ``mean``: one point per edge on the edge's mean jump, two constraints an edge, so no ring, and no
   moment on the edge's relative rotation (a hinge; ``points = "edges"`` with the moment switched off);
-- ``mean+rotation``: ``[cohesive] points = "edges"`` as it is (rockfrac.elements.cse_edges): the mean
+- ``mean+rotation``: ``[cohesive] points = "edges"`` as it is (rockfrac.elements.cse_facets): the mean
   jump and the elastic moment k L g^2 / 24 on the difference g of the edge's end normal jumps.
 
 Measured results: benchmarks/README.md, "Points per edge".
@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fragmentation import grains_case  # noqa: E402
 
 FRACTIONS = (0.15, 0.3, 0.5, 0.75, 1.0)
-EDGE_GROUPS = build_groups.edge_groups
+EDGE_GROUPS = build_groups.facet_groups
 
 
 def hinged_edge_groups(*args, **kwargs) -> list:
@@ -85,7 +85,7 @@ def main() -> None:
     print("|---" * (6 + len(FRACTIONS)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
         for kind in args.points:
-            build_groups.edge_groups = hinged_edge_groups if kind == "mean" else EDGE_GROUPS
+            build_groups.facet_groups = hinged_edge_groups if kind == "mean" else EDGE_GROUPS
             for form in args.forms:
                 out = Path(tmp) / f"{kind}_{form}"
                 case = small_grains(form, "nodes" if kind == "nodal" else "edges", args.steps, args.displacement,

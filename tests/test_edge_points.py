@@ -1,4 +1,4 @@
-"""[cohesive] points = 'edges' (rockfrac.elements.cse_edges): one point per edge on its mean jump, with an
+"""[cohesive] points = 'edges' (rockfrac.elements.cse_facets): one point per edge on its mean jump, with an
 elastic moment on the edge's relative rotation, instead of one point per node pair."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from conftest import EVERY_EDGE, check_tied_every_edge
 from rockfrac.api import make_case
 from rockfrac.case.build import build
 from rockfrac.case.schema import CaseError, parse_case
-from rockfrac.elements.cse_edges import EdgeEP, EdgeRP
+from rockfrac.elements.cse_facets import FacetEP, FacetRP
 from rockfrac.mesh import rock_tests as rt
 from rockfrac.output.csvout import read_csv
 from rockfrac.runner import run_case
@@ -37,7 +37,7 @@ def test_rp_edges_on_every_edge_held_shut_give_the_unsplit_solution(tmp_path):
     s = run_case(parse_case(dict(EVERY_EDGE, cohesive=RP_EDGES)), tmp_path / "b")
     assert s.result.completed
     group = s.built.cohesives[0]
-    assert isinstance(group, EdgeRP) and group.points.n == 38  # the 4 x 6 quads' internal edges
+    assert isinstance(group, FacetRP) and group.points.n == 38  # the 4 x 6 quads' internal edges
     check_tied_every_edge(tmp_path / "a", tmp_path / "b", rtol=1e-9, jump=1e-15)
     p = read_csv(tmp_path / "b" / "points.csv")
     assert np.abs(p["T_t"]).max() < 1e-9 * np.abs(p["T_n"]).max()  # sigma . n has no shear on these edges
@@ -61,7 +61,7 @@ def test_edge_points_tangent_is_the_derivative_of_their_forces(cohesive):
     rng = np.random.default_rng(3)
     u = np.zeros(model.n_dofs)
     u[:model.n_u] = 3e-9 * rng.standard_normal(model.n_u)
-    if isinstance(group, EdgeRP):
+    if isinstance(group, FacetRP):
         u[group.lam_dofs] = 2e4 * rng.standard_normal(group.lam_dofs.shape)
     u_n = np.zeros(model.n_dofs)
 
@@ -89,7 +89,7 @@ def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
     ds = kn a^2 L / 6 (Gauss), and the edge's forces are that energy's gradient."""
     built, model = _model(EP_EDGES)
     group = built.cohesives[0]
-    assert isinstance(group, EdgeEP)
+    assert isinstance(group, FacetEP)
     d, a, k = 2, 1e-7, 5
     n = group.points.frame[k, 1]
     m0, m1, p0, p1 = (group.jump_dofs[k, i * d:(i + 1) * d] for i in range(4))
@@ -102,7 +102,7 @@ def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
     assert np.abs(group.jumps(u)[k]).max() < 1e-25
 
     def energy(v: np.ndarray) -> float:  # the edge's moment
-        return 1e13 * length * group.rotation_jumps(v)[k] ** 2 / 24
+        return float(group.moment_energies(v)[k])
 
     j0, j1 = n @ (u[p0] - u[m0]), n @ (u[p1] - u[m1])
     s, w = np.polynomial.legendre.leggauss(3)
@@ -155,7 +155,7 @@ def test_rp_edge_points_follow_ep_edge_points_where_nodal_rp_points_stall(run):
 
 
 def test_edge_points_refuse_what_they_do_not_do(tmp_path):
-    """points = 'edges' with smoothed normals, nested multipliers or IMPL-EX, in 3D, or with the
+    """points = 'edges' with smoothed normals, nested multipliers or IMPL-EX, on a 3D mesh, or with the
     IMPL-EX fallback: a clear error before any step."""
     for extra, word in (({"normals": "smoothed"}, "normals = 'smoothed'"),
                         ({"multipliers": "nested"}, "multipliers = 'nested'")):
@@ -165,10 +165,12 @@ def test_edge_points_refuse_what_they_do_not_do(tmp_path):
         parse_case(dict(EVERY_EDGE, cohesive=dict(EP_EDGES, integration="implex")))
     with pytest.raises(CaseError, match="fallback"):
         build(parse_case(dict(EVERY_EDGE, cohesive=EP_EDGES, solver={"fallback": "implex"})))
+    with pytest.raises(CaseError, match="this mesh is 2D, whose interface cells are edges: points = 'edges'"):
+        build(parse_case(dict(EVERY_EDGE, cohesive=dict(EP_EDGES, points="faces"))))
     msh = rt.box(tmp_path / "box.msh", (1.0, 1.0, 1.0), (2, 2, 2), element="tet4")
     box = make_case(mesh={"kind": "gmsh", "file": str(msh)}, bulk={"E": 2e10, "nu": 0.25},
                     cohesive=dict(RP_EDGES, augmentation=1e12),
                     stages=[{"name": "p", "displacement": {"bottom": {"x": 0.0, "y": 0.0, "z": 0.0}},
                              "pressure": {"top": 1e6}}])
-    with pytest.raises(CaseError, match="is 2D"):
+    with pytest.raises(CaseError, match="this mesh is 3D, whose interface cells are faces: points = 'faces'"):
         build(box)

@@ -12,7 +12,7 @@ from rockfrac.case.cohesive_section import CohesiveCommon, CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
-from rockfrac.elements.cse_edges import EdgeEP, EdgeRP, edge_points
+from rockfrac.elements.cse_facets import FacetEP, FacetRP
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.cse_nested import CohesiveRPNested
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
@@ -129,8 +129,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
             law = Law3D(planar)
         except ValueError as err:
             raise CaseError(f"{path}: {key}: {err}") from None
-    if section.points == "edges":
-        return edge_groups(section, points, mesh, law, name, path, fallback)
+    if section.points != "nodes":
+        return facet_groups(section, points, mesh, law, name, path, fallback)
     if section.form is CohesiveForm.ep:
         return [CohesiveEP(points, law, name=name, integration=section.integration,
                            viscosity=section.viscosity or 0.0)]
@@ -142,18 +142,19 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
                        viscosity=section.viscosity or 0.0)]
 
 
-def edge_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, path: str, fallback: str) -> list:
-    """The CSE group of a set with points = 'edges' (one point per interface cell of ``points``)."""
-    key = f"{path}: [cohesive] ({name}): points = 'edges'"
-    if mesh.dim != 2:
-        raise CaseError(f"{key} is 2D (a face's mean jump and its two rotations are not built); "
-                        "3D surfaces take points = 'nodes'")
+def facet_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, path: str, fallback: str) -> list:
+    """The CSE group of a set with points = 'edges' or 'faces' (one point per interface cell of ``points``)."""
+    key = f"{path}: [cohesive] ({name}): points = {section.points!r}"
+    right = "edges" if mesh.dim == 2 else "faces"
+    if section.points != right:
+        raise CaseError(f"{key}: this mesh is {mesh.dim}D, whose interface cells are {right}: points = {right!r} "
+                        "(or 'nodes')")
     if fallback != "none":
         raise CaseError(f"{key} is integrated implicitly: [solver] fallback = {fallback!r} is for nodal points")
-    pts, m1, p1 = edge_points(mesh.nodes, points.segments)
     if section.form is CohesiveForm.ep:
-        return [EdgeEP(pts, m1, p1, law, name=name, viscosity=section.viscosity or 0.0)]
-    return [EdgeRP(pts, m1, p1, law, section.augmentation, name=name, viscosity=section.viscosity or 0.0)]
+        return [FacetEP(points.segments, mesh.nodes, law, name=name, viscosity=section.viscosity or 0.0)]
+    return [FacetRP(points.segments, mesh.nodes, law, section.augmentation, name=name,
+                    viscosity=section.viscosity or 0.0)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

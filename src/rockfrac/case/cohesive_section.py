@@ -82,12 +82,13 @@ class CohesiveCommon(_Section):
         "polygonal surface's vertex, each line of edges through a crossing; with surfaces on every edge "
         "the bulk's pairs tie a vertex's copies on each side, and rigid-plastic pairs there slide only "
         "along a frame they share)")
-    points: Literal["nodes", "edges"] = Field(
+    points: Literal["nodes", "edges", "faces"] = Field(
         "nodes", description="where the integration points are: 'nodes' (one per node pair of the interface "
-        "cells, the paper's nodal integration) or 'edges' (2D, on one process: one per edge, its mean jump, "
-        "and an elastic moment k L g^2 / 24 on the difference g of its end normal jumps, k = kn or the "
-        "augmentation: with surfaces on every edge, no ring of pairs round a node holds rigid-plastic "
-        "surfaces shut; rockfrac.elements.cse_edges)")
+        "cells, the paper's nodal integration), 'edges' (2D) or 'faces' (3D) (on one process: one per "
+        "interface cell, its mean jump, and an elastic moment k/2 g^T S g on the normal jumps g of its node "
+        "pairs, the penalty's energy of their zero-mean part, k L (g_1 - g_0)^2 / 24 on an edge; k = kn or "
+        "the augmentation: with surfaces on every edge or face, no ring of pairs round a node holds "
+        "rigid-plastic surfaces shut; rockfrac.elements.cse_facets)")
     smoothing_angle: Angle | None = Field(
         None, gt=0.0, description="normals = 'smoothed': the largest angle [rad] between a point's normal and the "
         f"mean normal of its facet for the facet to be smoothed (default {SMOOTHING_ANGLE}: 15 degrees, a "
@@ -118,12 +119,12 @@ class CohesiveCommon(_Section):
             raise ValueError("surfaces go with where = 'surfaces' (a list of surface group names of a 3D mesh)")
         if self.smoothing_angle is not None and self.normals != "smoothed":
             raise ValueError("smoothing_angle only applies to normals = 'smoothed'")
-        if self.points == "edges":
+        if self.points != "nodes":
             clash = [f"{k} = {v!r}" for k, v in (("normals", self.normals), ("multipliers", self.multipliers),
                                                   ("integration", self.integration))
                      if v not in ("pairs", None, "unknowns", "implicit")]
             if clash:
-                raise ValueError(f"points = 'edges' takes each edge's own normal, its multipliers as unknowns and "
+                raise ValueError(f"points = {self.points!r} takes each cell's own normal, its multipliers as unknowns and "
                                  f"the implicit update (or viscosity), not {', '.join(clash)}")
         return self
 

@@ -25,7 +25,7 @@ class _CohesiveGroup(ElementGroup):
 
     kind = "cohesive"
     rigid = False  # RP: constrained points have no elastic jump
-    per_edge = False  # one point per edge (rockfrac.elements.cse_edges), not per node pair
+    per_facet = False  # one point per edge or face (rockfrac.elements.cse_facets), not per node pair
     checkpoint_attrs: tuple[str, ...] = ("state", "tangent", "dissipated")
 
     MODES = {"": 0.0, "load": 1.0, "path": 2.0}  # control modes of a step, as stored in a checkpoint

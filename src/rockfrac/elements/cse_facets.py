@@ -1,0 +1,237 @@
+"""Cohesive surfaces with one point per interface cell (``[cohesive] points = "edges"`` in 2D, ``"faces"``
+in 3D): the point's jump is its edge's or face's mean jump, and elastic moments resist the cell's
+relative rotations.
+
+rockfrac's nodal points (paper Sect. 6.2) put a point on each (minus, plus) node pair. With surfaces
+on every edge a node is split into one copy per cell and its pairs close a ring whose jumps sum to
+zero, so rigid-plastic pairs there flow only together: a crack that bends at a node, or meets unyielded
+pairs, cannot slide (benchmarks/README.md, "Points per edge"). A facet point constrains the mean jump
+(dim conditions a cell instead of dim per node pair), which leaves no ring. Its rotations are held
+elastically, with no unknown added:
+
+- bending, about axes in the cell (2D: the one rotation):
+
+      E_b = k/2 g^T S g,   g_a = n . (u_pa - u_ma),   S = int N N^T dA - w w^T / A,   w = int N dA
+
+  on the normal jumps g of the cell's node pairs, the penalty's energy of their zero-mean part
+  (k = kn, or the augmentation r for RP; in 2D E_b = k L (g_1 - g_0)^2 / 24 [J/m]);
+- torsion, about the normal (3D): E_t = k_t/2 (b . J)^2 / I, b_a = int N_a n x (x - c) dA, I = int
+  |x - c|^2 dA (c the centroid), the penalty's energy of the jump's projection on a rigid rotation
+  about the normal (k_t = kt, or r). Without it, tetrahedra round an edge turn about their faces'
+  normals as a mechanism.
+
+So the yielded cells do not turn about their centroids as hinges, and a plane's stretch is left to
+the bulk. The law, its return, the viscosity and the RP multipliers are the nodal points' own: each
+point's rows (minus, plus[, multiplier]) are mapped onto the cell's nodes, each node taking its share
+w_a / A.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import NamedTuple
+
+import numpy as np
+
+from rockfrac.elements.base import Evaluation, Measure
+from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
+from rockfrac.elements.interface_points import InterfacePoints, local_frames_3d
+from rockfrac.fem.loads import face_rule
+from rockfrac.laws.law3d import Law3D
+from rockfrac.laws.traction_law import TractionLaw
+
+
+class FacetShape(NamedTuple):
+    """What a facet point needs of its cell's shape: each node's share of the mean jump w_a / A (n, m),
+    the bending matrix S (n, m, m) [m or m^2], and in 3D the torsion's b (n, m, 3) [m^3] and I (n,)
+    [m^4] (2D: None)."""
+
+    share: np.ndarray
+    bending: np.ndarray
+    torsion: np.ndarray | None
+    polar: np.ndarray | None
+
+
+def facet_points(nodes: np.ndarray, cells: np.ndarray) -> tuple[InterfacePoints, FacetShape]:
+    """One point per interface cell (m_0 .. m_{m-1}, p_0 .. p_{m-1}): a 2D edge (m = 2) or a 3D triangle
+    or quadrilateral face (m = 3, 4), at its centroid, weight its length [m] or area [m^2]; frame rows
+    (t, n) with t from m0 to m1 in 2D, (t1, t2, n) about the face's mean normal in 3D (the nodal points'
+    conventions); the points' (minus, plus) are the cells' first pair; and the cells' shapes."""
+    cells = np.asarray(cells, dtype=np.int64)
+    k, m = cells.shape[0], cells.shape[1] // 2
+    xm = nodes[cells[:, :m]]
+    torsion = polar = None
+    if nodes.shape[1] == 2:
+        size = np.linalg.norm(xm[:, 1] - xm[:, 0], axis=1)
+        t = (xm[:, 1] - xm[:, 0]) / size[:, None]
+        frame = np.stack([t, np.stack([-t[:, 1], t[:, 0]], axis=1)], axis=1)
+        share = np.full((k, 2), 0.5)
+        bending = (size / 12.0)[:, None, None] * np.array([[1.0, -1.0], [-1.0, 1.0]])
+        centre = 0.5 * (xm[:, 0] + xm[:, 1])
+    else:
+        shape, xq, nda = face_rule(xm)  # exact for N_a N_b on flat triangles and bilinear faces
+        da = np.linalg.norm(nda, axis=2)
+        w = np.einsum("qa,kq->ka", shape, da)
+        size = w.sum(axis=1)
+        share = w / size[:, None]
+        bending = np.einsum("qa,qb,kq->kab", shape, shape, da) - w[:, :, None] * share[:, None, :]
+        normal = nda.sum(axis=1)
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        frame = local_frames_3d(normal)
+        centre = np.einsum("ka,kai->ki", share, xm)
+        arm = np.cross(normal[:, None, :], xq - centre[:, None, :])  # n x (x - c) at the Gauss points
+        torsion = np.einsum("qa,kqi,kq->kai", shape, arm, da)
+        polar = np.einsum("kqi,kqi,kq->k", arm, arm, da)
+    idx = np.arange(k)
+    pts = InterfacePoints(minus=cells[:, 0].copy(), plus=cells[:, m].copy(), weight=size, frame=frame,
+                          x=centre, cell=idx, segments=cells, segment_points=np.repeat(idx[:, None], m, axis=1),
+                          segment_x=xm)
+    return pts, FacetShape(share, bending, torsion, polar)
+
+
+class _OnFacets:
+    """What a facet point changes of a nodal point: its jump, its rows on the cell's nodes (m_0 ..
+    m_{m-1}, p_0 .. p_{m-1}), the moments on the cell's rotations, and the nodes a separated point parts."""
+
+    per_facet = True
+    dim: int
+    points: InterfacePoints
+    jump_dofs: np.ndarray
+    dofs: np.ndarray
+    rotation_stiffness: float  # k of the bending [Pa/m]
+    torsion_stiffness: float  # k_t of the torsion [Pa/m] (3D)
+    _cells: np.ndarray  # (n, 2 m): each point's cell
+    _shape: FacetShape
+    _source: np.ndarray  # the point's row (minus, plus[, multiplier]) of each of the cell's rows
+    _share: np.ndarray  # (n, rows): and the share it takes (w_a / A for a node, all of a multiplier's)
+    _normal_rows: np.ndarray  # (n, m, 2 m dim): g = normal_rows . u over the cell's nodes
+    _torsion_rows: np.ndarray | None  # (n, 2 m dim): b . J = torsion_rows . u (3D)
+
+    def _on_facets(self, cells: np.ndarray, shape: FacetShape, multipliers: bool) -> None:
+        d, n = self.dim, cells.shape[0]
+        m = cells.shape[1] // 2
+        ar = np.arange(d)
+        self._cells, self._shape = cells, shape
+        self.jump_dofs = (d * cells[:, :, None] + ar).reshape(n, 2 * m * d)
+        self.dofs = self.jump_dofs
+        self._source = np.concatenate([ar] * m + [d + ar] * m + ([2 * d + ar] if multipliers else []))
+        nodes = np.repeat(shape.share, d, axis=1)
+        self._share = np.concatenate([nodes, nodes] + ([np.ones((n, d))] if multipliers else []), axis=1)
+        normal = self.points.frame[:, -1]
+        rows = np.zeros((n, m, 2, m, d))
+        for a in range(m):
+            rows[:, a, 0, a] = -normal
+            rows[:, a, 1, a] = normal
+        self._normal_rows = rows.reshape(n, m, 2 * m * d)
+        self._torsion_rows = None
+        if shape.torsion is not None:
+            self._torsion_rows = np.concatenate([-shape.torsion, shape.torsion], axis=1).reshape(n, 2 * m * d)
+
+    def _sides(self, u: np.ndarray) -> np.ndarray:
+        """The cells' nodal displacements (n, 2, m, dim) [m]: minus side, plus side."""
+        return u[self.jump_dofs].reshape(self.points.n, 2, -1, self.dim)
+
+    def jumps(self, u: np.ndarray) -> np.ndarray:
+        """Global-frame mean jumps of the cells (n_pts, dim) [m]."""
+        s = self._sides(u)
+        return np.einsum("pa,pai->pi", self._shape.share, s[:, 1] - s[:, 0])
+
+    def normal_jumps(self, u: np.ndarray) -> np.ndarray:
+        """The normal jumps g_a of each cell's node pairs (n_pts, m) [m]."""
+        return np.einsum("paj,pj->pa", self._normal_rows, u[self.jump_dofs])
+
+    def twists(self, u: np.ndarray) -> np.ndarray:
+        """Each face's relative rotation about its normal, (b . J) / I (n_pts,) [rad] (3D)."""
+        assert self._torsion_rows is not None and self._shape.polar is not None
+        return np.einsum("pj,pj->p", self._torsion_rows, u[self.jump_dofs]) / self._shape.polar
+
+    def moment_energies(self, u: np.ndarray) -> np.ndarray:
+        """Each cell's moment energy, bending k/2 g^T S g and torsion k_t/2 I twist^2 [J/m in 2D, J in 3D]."""
+        g = self.normal_jumps(u)
+        out = 0.5 * self.rotation_stiffness * np.einsum("pa,pab,pb->p", g, self._shape.bending, g)
+        if self._torsion_rows is not None:
+            assert self._shape.polar is not None
+            out += 0.5 * self.torsion_stiffness * self._shape.polar * self.twists(u) ** 2
+        return out
+
+    def moment_energy(self, u: np.ndarray) -> float:
+        """The moments' elastic energy [J/m, J]."""
+        return float(np.sum(self.moment_energies(u)))
+
+    def elastic_energy(self, u: np.ndarray) -> float:
+        """The law's stored energy at the points and the moments' [J/m, J]."""
+        return super().elastic_energy(u) + self.moment_energy(u)  # type: ignore[misc]
+
+    def _facet_rows(self, ev: Evaluation, u: np.ndarray) -> Evaluation:
+        src, c, share = self._source, self._normal_rows, self._share
+        n_u = c.shape[2]
+        fe = ev.fe[:, src] * share
+        ke = ev.ke[:, src[:, None], src[None, :]] * share[:, :, None] * share[:, None, :]
+        ks = self.rotation_stiffness * self._shape.bending
+        fe[:, :n_u] += np.einsum("paj,pab,pb->pj", c, ks, self.normal_jumps(u))
+        ke[:, :n_u, :n_u] += np.einsum("pai,paj->pij", c, np.einsum("pab,pbj->paj", ks, c))
+        if self._torsion_rows is not None:
+            assert self._shape.polar is not None
+            r = self._torsion_rows
+            kt = self.torsion_stiffness / self._shape.polar
+            fe[:, :n_u] += (kt * np.einsum("pj,pj->p", r, u[self.jump_dofs]))[:, None] * r
+            ke[:, :n_u, :n_u] += kt[:, None, None] * r[:, :, None] * r[:, None, :]
+        return replace(ev, fe=fe, ke=ke)
+
+    def jump_measure(self, n_dofs: int) -> Measure:
+        """The nodal points' path measure on the cells' mean jumps."""
+        pts, d = self.points, self.dim
+        m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]  # type: ignore[attr-defined]
+        per_node = self._shape.share[:, :, None] * m[:, None, :]  # (n, m, d)
+        grad = np.zeros(n_dofs)
+        np.add.at(grad, self.jump_dofs, np.concatenate([-per_node, per_node], axis=1).reshape(pts.n, -1))
+
+        def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
+            return float(np.sum(m * self.jumps(u))), grad
+
+        return measure
+
+    def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        """The nodal points' evaluation at the cells' mean jumps, on the cells' nodes, with the moments."""
+        return self._facet_rows(super().evaluate(u, u_n), u)  # type: ignore[misc]
+
+    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
+        """The separated cells' split node pairs (k, 2), all of each cell's (a separated point parts its
+        whole edge or face), and their length [m] or area [m^2]."""
+        hit = self.law.separated(self.state, fraction)  # type: ignore[attr-defined]
+        m = self._cells.shape[1] // 2
+        pairs = np.stack([self._cells[hit, :m], self._cells[hit, m:]], axis=2).reshape(-1, 2)
+        return pairs[pairs[:, 0] != pairs[:, 1]], float(self.points.weight[hit].sum())
+
+
+class FacetEP(_OnFacets, CohesiveEP):
+    """EP surfaces with one point per interface cell (the moments' k: the law's kn, and kt for the torsion)."""
+
+    def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, *, name: str = "cohesive",
+                 viscosity: float = 0.0):
+        points, shape = facet_points(nodes, cells)
+        super().__init__(points, law, name=name, viscosity=viscosity)
+        assert law.kn is not None and law.kt is not None
+        self.rotation_stiffness, self.torsion_stiffness = float(law.kn), float(law.kt)
+        self._on_facets(points.segments, shape, multipliers=False)
+
+
+class FacetRP(_OnFacets, CohesiveRP):
+    """RP surfaces with one point per interface cell (the moments' k: the augmentation r). No junction
+    term: a facet point closes no ring of pairs round a node."""
+
+    def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, augmentation: float, *,
+                 name: str = "cohesive", viscosity: float = 0.0):
+        points, shape = facet_points(nodes, cells)
+        super().__init__(points, law, augmentation, junction=np.zeros(points.n, dtype=bool), name=name,
+                         viscosity=viscosity)
+        self.rotation_stiffness = self.torsion_stiffness = float(augmentation)
+        self._on_facets(points.segments, shape, multipliers=True)
+
+    def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
+        """Multiplier dofs whose mean jump the Dirichlet conditions hold: every node of the cell held in
+        that component."""
+        d = self.dim
+        held = np.isin(self.jump_dofs, dirichlet)
+        out = [self.lam_dofs[np.all(held[:, a::d], axis=1), a] for a in range(d)]
+        return np.concatenate(out).astype(np.int64)

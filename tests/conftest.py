@@ -67,6 +67,38 @@ def check_tied_every_edge(unsplit: Path, tied: Path, rtol: float, jump: float) -
     assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
 
 
+def check_cohesive_tangent(model, group, seed: int, step: float) -> np.ndarray:
+    """The model's tangent against central differences of its internal forces (40 random columns, steps
+    of ``step`` times the scale) at a random state of jumps of 3e-9 m (and RP multipliers of 2e4 Pa)
+    where some of ``group``'s points are plastic and others not; returns that state."""
+    import scipy.sparse as sp
+
+    rng = np.random.default_rng(seed)
+    u = np.zeros(model.n_dofs)
+    u[:model.n_u] = 3e-9 * rng.standard_normal(model.n_u)
+    lam = getattr(group, "lam_dofs", None)
+    if lam is not None:
+        u[lam] = 2e4 * rng.standard_normal(lam.shape)
+    u_n = np.zeros(model.n_dofs)
+
+    def forces(v: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        model.begin_step()
+        asm = model.assemble(v, u_n, np.zeros(model.n_dofs))
+        return asm.f_int, sp.csr_matrix(asm.matrix)
+
+    _, a = forces(u)
+    plastic = int(np.count_nonzero(group.trial[:, group.mode] == 1.0))
+    assert 0 < plastic < group.points.n
+    for j in rng.choice(model.n_dofs, 40, replace=False):
+        h = step * (3e-9 if j < model.n_u else 2e4)
+        e = np.zeros(model.n_dofs)
+        e[j] = h
+        fd = (forces(u + e)[0] - forces(u - e)[0]) / (2 * h)
+        col = a[:, j].toarray().ravel()
+        assert np.linalg.norm(fd - col) <= 1e-6 * max(np.linalg.norm(col), 1e-30), j
+    return u
+
+
 def with_law(case: dict, **law) -> dict:
     out = copy.deepcopy(case)
     out["cohesive"].update(law)

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
-from conftest import EVERY_EDGE, check_tied_every_edge
+from conftest import EVERY_EDGE, check_cohesive_tangent, check_tied_every_edge
 
 from rockfrac.api import make_case
 from rockfrac.case.build import build
@@ -57,30 +56,7 @@ def test_edge_points_tangent_is_the_derivative_of_their_forces(cohesive):
     internal forces, at a state where some points are plastic and others are not (EP: jumps of a few
     strengths over kn; RP: multipliers of that size, and jumps)."""
     built, model = _model(cohesive)
-    group = built.cohesives[0]
-    rng = np.random.default_rng(3)
-    u = np.zeros(model.n_dofs)
-    u[:model.n_u] = 3e-9 * rng.standard_normal(model.n_u)
-    if isinstance(group, FacetRP):
-        u[group.lam_dofs] = 2e4 * rng.standard_normal(group.lam_dofs.shape)
-    u_n = np.zeros(model.n_dofs)
-
-    def forces(v: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
-        model.begin_step()
-        asm = model.assemble(v, u_n, np.zeros(model.n_dofs))
-        return asm.f_int, sp.csr_matrix(asm.matrix)
-
-    f0, a = forces(u)
-    plastic = int(np.count_nonzero(group.trial[:, group.mode] == 1.0))
-    assert 0 < plastic < group.points.n
-    columns = rng.choice(model.n_dofs, 40, replace=False)
-    for j in columns:
-        h = 1e-4 * (3e-9 if j < model.n_u else 2e4)
-        e = np.zeros(model.n_dofs)
-        e[j] = h
-        fd = (forces(u + e)[0] - forces(u - e)[0]) / (2 * h)
-        col = a[:, j].toarray().ravel()
-        assert np.linalg.norm(fd - col) <= 1e-6 * max(np.linalg.norm(col), 1e-30), j
+    check_cohesive_tangent(model, built.cohesives[0], seed=3, step=1e-4)
 
 
 def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():

@@ -25,6 +25,14 @@ ACCURACY = 1e-6
 # perturbation is not small (the disc's RP, 1e-3 to 1) stops refining at the first step.
 REFINE_STEPS = 5
 
+# A solution within ``ACCURACY`` whose relative residual is still above this is refined the same way
+# (each step kept only if it at least halves the residual). Newton's energy test weighs the multiplier
+# rows of an RP saddle point by the multipliers: on unyielded RP surfaces on every face of a 2 x 2 x 2
+# hex box (junctions round every internal edge) MKL 2026.2's PARDISO perturbed one pivot and left
+# 9e-11, whose energy (5e-10 of the first) cost a third iteration of a linear problem; one
+# substitution more brought it to 7e-13, SuperLU's level, and the second iteration converges.
+POLISH = 1e-12
+
 # ``then`` takes over for the rest of the run at the third matrix whose solve ``first`` got wrong (and
 # refinement could not mend) where ``then``'s was accurate; the two before, ``then`` solves that matrix
 # only. PARDISO on the grains' RP saddle point was off beyond repair at one factorization in 36 (2e1,
@@ -86,7 +94,8 @@ class Checked:
     the run (``first`` fails on this problem's matrices, e.g. PARDISO's static pivoting on RP saddle
     points); where ``then``'s does not meet it either, the system is singular to working precision
     for that right-hand side (a mechanism under path control's load pattern) and the solution with
-    the smaller residual is returned, ``first`` kept.
+    the smaller residual is returned, ``first`` kept. A solution within ``accuracy`` but above
+    POLISH is refined the same way towards round-off (kept step by step where it halves).
     With ``then = None`` solves are only counted. Dense (tiny) systems are not checked: every direct
     backend factorizes them alike (LAPACK, with refinement)."""
 
@@ -100,6 +109,7 @@ class Checked:
         self.refined = 0  # of those, brought within ``accuracy`` by refinement with first's factors
         self.refine_steps = 0  # the refinement steps those took
         self.worst = 0.0  # the largest relative residual of ``first``'s solutions
+        self.polished = 0  # solves within ``accuracy`` brought nearer round-off (POLISH) by refinement
 
     def begin_step(self) -> None:
         self.first.begin_step()
@@ -112,6 +122,9 @@ class Checked:
             out.append(f"{self.off} of {self.solves} solves by {self.first.name} left relative residuals above "
                        f"{self.accuracy:g} (the largest {self.worst:.1e})"
                        + ("" if self.then is not None else "; [solver] linear = 'auto' or 'superlu' retries them"))
+        if self.polished:
+            out.append(f"{self.polished} of {self.solves} solves by {self.first.name} within {self.accuracy:g} were "
+                       f"refined towards round-off ({POLISH:g}) with their own factors")
         if self.refined:
             out.append(f"{self.refined} of them met it after iterative refinement with {self.first.name}'s factors "
                        f"({self.refine_steps} substitutions in all)")
@@ -150,6 +163,9 @@ class _CheckedFactor:
         owner.solves += 1
         owner.worst = max(owner.worst, res)
         if res <= owner.accuracy:
+            if res > POLISH:
+                x, res_polished, steps = _refined(self._factor, self._a, b, x, res, POLISH)
+                owner.polished += res_polished < res
             return x
         owner.off += 1
         x, res, steps = _refined(self._factor, self._a, b, x, res, owner.accuracy)

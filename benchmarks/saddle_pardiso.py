@@ -1,11 +1,13 @@
-"""PARDISO with and without its weighted matching on RP saddle points with surfaces on every edge.
+"""PARDISO with and without its weighted matching, and in the saddle order, on RP saddle points with surfaces
+on every edge.
 
 One command (``python benchmarks/saddle_pardiso.py``). Two sets of real tangents, each with its
 Newton right-hand side, kept from runs whose linear solves are SuperLU's (accurate):
-- *grains*: the grain-matrix specimen with RP surfaces on every edge (``fragmentation.py --specimen
-  grains --variants "rp viscous" --steps 100``), resumed from its checkpoint at step 40 (with plastic
-  points; results/saddle_pardiso_grains_step40.tar.xz, the run's bundle then): its next ``--grains``
-  systems (83,680 rows);
+- *grains*: the grain-matrix specimen with RP surfaces on every edge, one point per edge
+  (``fragmentation.py --specimen grains --variants "rp viscous" --steps 100 --points edges``), resumed
+  from its checkpoint at step 328 (0.979 of its 1 mm, past the peak, with plastic points;
+  results/saddle_pardiso_grains_edges_step328.tar.xz, the run's bundle then): its next ``--grains``
+  systems (62,792 rows);
 - *disc*: the coarse Brazilian disc with RP surfaces on every edge (examples/rock_tests/brazilian/
   everywhere.toml made RP, as tests/test_rock_tests.py runs it): its first ``--disc`` systems (3,664 rows).
 Each backend then solves each set in order, as the Newton loop does: analysed and factorized at
@@ -32,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).parent
-# the grains' RP run's checkpoint at step 40 (its bundle, kept here: the run itself has ended)
-GRAINS_AT_40 = HERE / "results" / "saddle_pardiso_grains_step40.tar.xz"
+# the grains' RP run's checkpoint at step 328 (its bundle, kept here: the run itself has ended)
+GRAINS_AT_328 = HERE / "results" / "saddle_pardiso_grains_edges_step328.tar.xz"
 sys.path.insert(0, str(HERE))
 from fragmentation import BUNDLED, base_case, variant_case  # noqa: E402
 from run import machine, markdown_table, publish  # noqa: E402
@@ -73,34 +75,43 @@ def recorder(systems: list, count: int):
     return Recorder()
 
 
-def grains_systems(count: int, folder: Path) -> list:
-    """The next ``count`` systems of the grains' RP run from its checkpoint at step 40."""
+def grains_systems(count: int, folder: Path) -> tuple[list, int]:
+    """The next ``count`` systems of the grains' RP run from its checkpoint at step 328, and the
+    number of displacement dofs (the multipliers follow)."""
     import rockfrac.runner as runner
     from rockfrac.case.schema import parse_case
 
     args = argparse.Namespace(specimen="grains", displacement=None, stop_fraction=0.5, augmentation=None,
-                              penalty=None, elimination=False, checkpoint_every=5)
+                              penalty=None, elimination=False, checkpoint_every=10, normals="pairs",
+                              points="edges")
     base, visc = base_case(args, 0.004, folder)
     d, name, _ = variant_case(base, args, "rp viscous", 100, visc)
     out = folder / name
     out.mkdir(parents=True)
-    with tarfile.open(GRAINS_AT_40, "r:xz") as tar:  # plain files only, into the run folder
+    with tarfile.open(GRAINS_AT_328, "r:xz") as tar:  # plain files only, into the run folder
         tar.extractall(out, members=[m for m in tar.getmembers() if m.isfile() and m.name in BUNDLED],
                        filter="data")
     systems: list = []
+    nodes: list = []
     make = runner.make_solver
-    runner.make_solver = lambda *a, **k: recorder(systems, count)  # the run's linear solver, recording
+
+    def recording(name, coordinates, *rest, **options):  # the run's linear solver, recording
+        nodes.append(coordinates)
+        return recorder(systems, count)
+
+    runner.make_solver = recording
     try:
         runner.run_case(parse_case(d), out, resume=True)
     except Kept:
         pass
     finally:
         runner.make_solver = make
-    return systems
+    return systems, int(nodes[0].size)
 
 
-def disc_systems(count: int) -> list:
-    """The first ``count`` systems of the coarse disc with RP surfaces on every edge."""
+def disc_systems(count: int) -> tuple[list, int]:
+    """The first ``count`` systems of the coarse disc with RP surfaces on every edge, and the number
+    of displacement dofs (the multipliers follow)."""
     from rockfrac.case.build import build
     from rockfrac.case.schema import parse_case
     from rockfrac.solve.newton import NewtonOptions
@@ -122,7 +133,7 @@ def disc_systems(count: int) -> list:
                    lambda info: None)
     except Kept:
         pass
-    return systems
+    return systems, int(built.mesh.nodes.size)
 
 
 def measure(backend, systems: list) -> dict:
@@ -162,11 +173,11 @@ def main() -> None:
     sets = []
     with tempfile.TemporaryDirectory() as tmp:
         if args.grains:
-            sets.append(("grains, RP on every edge, from step 40", grains_systems(args.grains, Path(tmp))))
+            sets.append(("grains, RP on every edge (edge points), from step 328", *grains_systems(args.grains, Path(tmp))))
         if args.disc:
-            sets.append(("coarse disc, RP on every edge", disc_systems(args.disc)))
-    for label, systems in sets:
-        for backend in (Pardiso(), Pardiso(matching=False), SuperLU()):
+            sets.append(("coarse disc, RP on every edge", *disc_systems(args.disc)))
+    for label, systems, n_u in sets:
+        for backend in (Pardiso(), Pardiso(matching=False), Pardiso(matching=False, multipliers_from=n_u), SuperLU()):
             row = measure(backend, systems)
             row["set"] = label
             print(row, flush=True)

@@ -344,12 +344,16 @@ def test_auto_in_3d_takes_amg_from_its_size_and_hands_over_to_the_direct_backend
     first failure of GMRES the direct backend solves, the same iteration and from then on."""
     pytest.importorskip("pyamg")
     direct = linear.make_solver("auto").name
+
+    def plain(solver) -> str:  # the direct chain's name, whether or not it orders a saddle point
+        return solver.name.replace(", saddle ordering", "")
+
     x3 = np.random.default_rng(0).uniform(size=(10, 3))
     big = linear.AMG_FROM_3D
     assert isinstance(linear.make_solver("auto", x3, big), linear.Handover)
-    assert linear.make_solver("auto", x3, big - 1).name == direct
+    assert plain(linear.make_solver("auto", x3, big - 1)) == direct
     assert linear.make_solver("auto", x3, big, enrichment=True).name == direct
-    assert linear.make_solver("auto", x3[:, :2], 10 * big).name == direct
+    assert plain(linear.make_solver("auto", x3[:, :2], 10 * big)) == direct
     # the rigid-body modes: a rigid motion has no strain, so K B = 0 on an unconstrained elastic body
     from rockfrac.elements.solid import ElasticSolid
     from rockfrac.fem.reference import HEX8

@@ -32,6 +32,7 @@ from rockfrac.case.build import build  # noqa: E402
 from rockfrac.case.schema import parse_case  # noqa: E402
 from rockfrac.runner import engine_options  # noqa: E402
 from rockfrac.solve.linear import make_solver  # noqa: E402
+from rockfrac.solve.newton import NewtonOptions  # noqa: E402
 from rockfrac.solve.stepping import run_stages  # noqa: E402
 from rockfrac.studies import table1  # noqa: E402
 
@@ -378,6 +379,11 @@ DISPLACEMENTS = {"inclusion_smoothed_rp": 1e-6}  # compared on the displacements
 # differ from their second or third step (at 1e-17), and the iterations of a step past the peak (35
 # or 38) by 2 in some runs: 411, 413 and 415 in all over four runs of the same code (2026-11-28),
 # every step on the same solution.
+# The RP bar under arc-length control: its serial reference once (CI, 2026-12-01) converged its first
+# step in 1 iteration (the residual after its points switched was at round-off, below ROUNDOFF x the
+# tolerance) where every other run, serial or on 2 ranks, took 2; from that start its third step's
+# pinned point cycled for 19 iterations instead of 2, and the run took 159 in all against the ranks'
+# 140, every step on the same solution (1e-9). So the totals may also differ by one step's budget.
 CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
 
 
@@ -667,7 +673,7 @@ def assert_same_table(par: dict, ser: dict, what: str, chatty: bool = False) -> 
     reaction, a node held by symmetry, a jump across the slip are round-off), the energy balance's
     error of the external work; the cohesive points' eps_n_p and eps_s_p (dissipations over G_f, 0 to
     about 1: a point that has not slid holds round-off) of 1. chatty: Newton's iteration counts may
-    differ by step, their total by at most 5 % (see CHATTY)."""
+    differ by step, their total by at most 5 % and one step's iteration budget (see CHATTY)."""
     assert list(par) == list(ser) and len(par[next(iter(par))]) == len(ser[next(iter(ser))]), what
     numbers = {}
     for k in ser:
@@ -681,7 +687,9 @@ def assert_same_table(par: dict, ser: dict, what: str, chatty: bool = False) -> 
     work = np.nanmax(np.abs(numbers["W_external"][1]), initial=0.0) if "W_external" in numbers else 0.0
     if chatty and "newton_iterations" in numbers:
         p, s = numbers.pop("newton_iterations")
-        assert abs(p.sum() - s.sum()) <= 0.05 * s.sum(), f"{what} newton_iterations"
+        # one step whose active-set history round-off decides may take up to a step's whole budget
+        budget = NewtonOptions().max_iterations
+        assert abs(p.sum() - s.sum()) <= 0.05 * s.sum() + budget, f"{what} newton_iterations"
     for k, (p, s) in numbers.items():
         family = max((floor[f] for f in families if k.startswith(f)), default=0.0)
         natural = 1.0 if k in ("eps_n_p", "eps_s_p") else 0.0  # fractions of the fracture energy

@@ -168,6 +168,11 @@ class Pardiso(_Backend):
     (residuals up to 11) and cost 2.4x the refactorization; without it 60-430 pivots, every residual
     within 1e-6 (benchmarks/README.md, "PARDISO without matching"). On the paper's rigid RP
     saddle point the matching is the better: no pivot perturbed.
+
+    ``multipliers_from = n_u`` (without matching only): a matrix with more than n_u rows is a saddle
+    point, displacements first, and is analysed in the elimination order of
+    :func:`rockfrac.solve.ordering.saddle_order` (iparm(5) = 1, a user permutation) instead of
+    PARDISO's METIS: each multiplier after its displacements, so its pivot is not zero.
     """
 
     name = "pardiso"
@@ -177,12 +182,15 @@ class Pardiso(_Backend):
     symmetric_from = 5_000  # rows from which "auto" checks the symmetry
     symmetry_tol = 1e-13  # max |A - A^T| / max |A| accepted as symmetric (assembly round-off)
 
-    def __init__(self, matching: bool = True) -> None:
+    def __init__(self, matching: bool = True, multipliers_from: int | None = None) -> None:
         import pypardiso  # noqa: F401  (fails here, not mid-run, if it is missing)
 
+        if multipliers_from is not None and matching:
+            raise ValueError("Pardiso: a saddle-point ordering (multipliers_from) needs matching=False")
         self.matching = matching
+        self.multipliers_from = multipliers_from
         if not matching:
-            self.name = "pardiso without matching"
+            self.name = "pardiso without matching" + (", saddle ordering" if multipliers_from is not None else "")
 
         self._solver: Any = None  # pypardiso's solver (its ctypes handle and arrays)
         self._pattern: _Pattern | None = None
@@ -286,6 +294,12 @@ class Pardiso(_Backend):
             self._ia += 1
             self._ja = (a.indices[self._upper] + 1).astype(np.int32)
         self._set_controls()
+        if self.multipliers_from is not None and 0 < self.multipliers_from < a.shape[0]:
+            from rockfrac.solve.ordering import saddle_order
+
+            # iparm(5) = 1: the user's permutation; perm(k) is the (1-based) row eliminated k-th
+            self._solver.perm = (saddle_order(a, self.multipliers_from) + 1).astype(np.int32)
+            self._solver.iparm[4] = 1
         self._call(11, a.data if mtype == 11 else a.data[self._upper], np.zeros((a.shape[0], 1)))
         self._new_step = False
         self.analyses += 1
@@ -438,14 +452,17 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
     'auto' on a 3D model of at least AMG_FROM_3D dofs (RP multipliers or not) without nodal cracks'
     ``enrichment`` (their unknowns span the region that may crack: a Schur block as large as that
     is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure.
-    PARDISO's solves are checked (``Checked``): under 'auto' PARDISO without matching retries an
-    inaccurate one, and SuperLU one that stays inaccurate; each takes over where it is accurate
+    PARDISO's solves are checked (``Checked``): under 'auto' PARDISO without matching (in the saddle
+    order where the tangent has multipliers after the displacements) retries an inaccurate one, and SuperLU one that stays inaccurate; each takes over where it is accurate
     (three matrices); chosen by name, they are counted in the run's log."""
     if name == "auto":
         installed = available()
         first = next(n for n in PREFERENCE if n in installed)
-        direct: LinearSolver = (Checked(Pardiso(), Checked(Pardiso(matching=False), SuperLU())) if first == "pardiso"
-                                else SOLVERS[first]())
+        # multipliers (RP CSE) numbered after the displacements: a saddle point, ordered as one
+        saddle = (coordinates.size if coordinates is not None and n_dofs > coordinates.size and not enrichment
+                  else None)
+        direct: LinearSolver = (Checked(Pardiso(), Checked(Pardiso(matching=False, multipliers_from=saddle),
+                                                           SuperLU())) if first == "pardiso" else SOLVERS[first]())
         three_d = coordinates is not None and coordinates.shape[1] == 3
         if three_d and n_dofs >= AMG_FROM_3D and not enrichment and "gmres-amg" in installed:
             return Handover(KrylovAMG(coordinates), direct)

@@ -150,3 +150,39 @@ def test_edge_points_refuse_what_they_do_not_do(tmp_path):
                              "pressure": {"top": 1e6}}])
     with pytest.raises(CaseError, match="this mesh is 3D, whose interface cells are faces: points = 'faces'"):
         build(box)
+
+
+@pytest.mark.parametrize("cohesive", [EP_EDGES, RP_EDGES], ids=["ep", "rp"])
+def test_a_share_of_no_edges_evaluates_to_nothing(cohesive):
+    """An MPI rank may hold none of a set's edges: its group (made from no cells, with the set's places
+    ``index``) evaluates, measures and separates to empty arrays, where a reshape of nothing once
+    raised on that rank alone and left the other waiting."""
+    built, model = _model(cohesive)
+    whole = built.cohesives[0]
+    law = whole.law
+    cells = np.zeros((0, 4), dtype=np.int64)
+    if isinstance(whole, FacetRP):
+        group = FacetRP(cells, built.mesh.nodes, law, whole.aug, index=np.zeros(0, dtype=np.int64))
+    else:
+        group = FacetEP(cells, built.mesh.nodes, law, index=np.zeros(0, dtype=np.int64))
+    u = np.zeros(model.n_dofs)
+    assert group.points.n == 0 and group.jumps(u).shape == (0, 2) and group.normal_jumps(u).shape == (0, 2)
+    measure = group.jump_measure(model.n_dofs)
+    value, grad = measure(u)
+    assert value == 0.0 and not grad.any()
+    pairs, length = group.separated(0.99)
+    assert pairs.shape == (0, 2) and length == 0.0
+    assert group.moment_energy(u) == 0.0
+
+
+def test_facet_points_take_their_places_among_the_sets():
+    """A share of a set's edges (an MPI rank's) keeps each edge's place among the set's as its points'
+    index and cell, which number the RP multipliers and the rows of points.csv over the ranks."""
+    built, _ = _model(EP_EDGES)
+    whole = built.cohesives[0]
+    keep = np.arange(3, whole.points.n, 4)
+    part = FacetEP(whole.points.segments[keep], built.mesh.nodes, whole.law, index=keep)
+    np.testing.assert_array_equal(part.points.index, keep)
+    np.testing.assert_array_equal(part.points.cell, keep)
+    np.testing.assert_allclose(part.points.weight, whole.points.weight[keep], rtol=1e-15)
+    np.testing.assert_allclose(part.points.frame, whole.points.frame[keep], rtol=1e-15)

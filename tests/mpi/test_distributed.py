@@ -289,6 +289,15 @@ def inclusion_case(form: str = "ep") -> dict:
     return case
 
 
+def on_edges(case: dict, nx: int | None = None) -> dict:
+    """The case with its cohesive set's points on its edges (the specimen on nx x 2 nx quads if given:
+    the paper's crack then crosses nx cells, one edge each)."""
+    case["cohesive"]["points"] = "edges"
+    if nx is not None:
+        case["mesh"].update(nx=nx, ny=2 * nx)
+    return case
+
+
 CASES = {
     # EP surfaces of the paper's law, load control; the activation is located as an event
     "paper_ep": lambda: paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3),
@@ -302,6 +311,12 @@ CASES = {
     # pivots off its zero diagonal (it ran out of workspace and stopped at the first step)
     "every_edge_rp": lambda: dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
                                   output={"picture": False, "vtk": False, "points": False}),
+    # one point per edge (rockfrac.elements.cse_facets): each edge's point on its interface cell's rank,
+    # the RP multipliers numbered over the ranks' edges; on the paper's crack, and on every edge
+    "paper_ep_edges": lambda: on_edges(paper_case("ep", 1e12, axial_steps=30, axial_displacement=0.6e-3), 6),
+    "paper_rp_edges": lambda: on_edges(paper_case("rp", axial_steps=60, axial_displacement=1.5e-3), 6),
+    "every_edge_rp_edges": lambda: on_edges(dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
+                                                 output={"picture": False, "vtk": False, "points": False})),
     "splitting_path": splitting_case,
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
@@ -333,15 +348,16 @@ CASES = {
 def assert_same_history(par: dict, ser: dict, any_iterations: bool = False, u_rtol: float = 1e-9,
                         circulating: bool = False) -> None:
     """any_iterations: the Newton iterations of a step may differ by more than one, their total by
-    at most 5 % (see CHATTY); u_rtol: the unknowns' tolerance, relative to a step's largest;
+    at most 5 % and one step's budget (see CHATTY); u_rtol: the unknowns' tolerance, relative to a step's largest;
     circulating: the displacements alone compared (to u_rtol), the load factors and forces to 1e-8,
     the multipliers only through the forces (see CIRCULATING)."""
     assert "error" not in par, str(par.get("error"))
     assert str(par["message"]) == str(ser["message"])
     assert par["lam"].shape == ser["lam"].shape
     off = np.abs(par["iterations"] - ser["iterations"])
-    if any_iterations:
-        assert abs(par["iterations"].sum() - ser["iterations"].sum()) <= 0.05 * ser["iterations"].sum()
+    if any_iterations:  # and one step's budget (see CHATTY)
+        budget = NewtonOptions().max_iterations
+        assert abs(par["iterations"].sum() - ser["iterations"].sum()) <= 0.05 * ser["iterations"].sum() + budget
     else:
         assert off.max() <= 1 and np.count_nonzero(off) <= 0.02 * off.size, np.flatnonzero(off)
     np.testing.assert_array_equal(par["path"], ser["path"])
@@ -384,7 +400,9 @@ DISPLACEMENTS = {"inclusion_smoothed_rp": 1e-6}  # compared on the displacements
 # tolerance) where every other run, serial or on 2 ranks, took 2; from that start its third step's
 # pinned point cycled for 19 iterations instead of 2, and the run took 159 in all against the ranks'
 # 140, every step on the same solution (1e-9). So the totals may also differ by one step's budget.
-CHATTY = {"cmod_opening", "paper_rp", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
+# The RP edge points (the paper's crack, every edge held shut) converge some of their held steps in 1
+# iteration, others in 2, by the same round-off test, on one process and on 2 ranks alike.
+CHATTY = {"cmod_opening", "paper_rp", "paper_rp_edges", "every_edge_rp_edges", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
 
 
 # on 2 ranks only: the heaviest, and those whose 3 ranks repeat others' (cohesive surfaces and path
@@ -487,7 +505,7 @@ def test_distributed_history_equals_serial(name, n):
     elif name.startswith("cmod"):
         assert ser["path"].sum() == ser["path"].size - 1  # every step under CMOD control but the one ending at
         # the first yield (a path step located as a load step)
-    elif name == "every_edge_rp":
+    elif name.startswith("every_edge_rp"):
         assert ser["iterations"].max() == 2  # held shut: a linear step, its correction and the check
     elif name == "inclusion_smoothed_ep":
         assert ser["iterations"].max() == 2  # the boundary yields (an elastic step takes one iteration)
@@ -949,6 +967,26 @@ def test_rigid_plastic_surfaces_on_ranks_write_the_serial_outputs_and_resume(tmp
     launch("--resume")
     assert "resumed from the checkpoint at step 50" in (tmp_path / "mpi" / "run.log").read_text()
     assert_same_table(read_csv(tmp_path / "mpi" / "history.csv"), whole, "resumed history.csv", chatty=True)
+
+
+@pytest.mark.parametrize("form", ["ep", "rp"])
+def test_edge_points_on_ranks_write_the_serial_points_csv(tmp_path, form):
+    """`mpiexec -n 2 rockfrac run` of the paper's crack with one point per edge: each edge's point on its
+    interface cell's rank, written once, in the serial order (points.csv and history.csv as a serial
+    run's), the RP multipliers numbered over both ranks' edges."""
+    case = CASES[f"paper_{form}_edges"]()
+    case["loading"]["axial_steps"] = 20
+    case["output"] = {"points": True, "picture": False}
+    path = case_file(case, tmp_path / "edges.toml", tmp_path / "serial")
+    done = rockfrac_on_ranks(2, path, tmp_path / "mpi")
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    for name in ("history.csv", "points.csv"):
+        assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name,
+                          chatty=form == "rp")
+    pts = read_csv(tmp_path / "serial" / "points.csv")
+    edges = len(set(pts["point"]))
+    assert edges == int(build(parse_case(case, "edges.toml")).cohesives[0].points.n) >= 6
+    assert "plastic" in pts["state"]
 
 
 def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path):

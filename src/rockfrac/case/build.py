@@ -172,10 +172,6 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         case = resolve(case, path)
         mesh, set_cells = insert_cohesive(case, make_mesh(case, path), path)
     else:
-        facets = [(k + 1, c.points) for k, c in enumerate(case.cohesive_sets) if c.points != "nodes"]
-        if facets:  # every rank refuses, before rank 0 cuts the shares
-            raise CaseError(f"{path}: [cohesive] (cohesive {facets[0][0]}): points = {facets[0][1]!r} runs on one "
-                            "process (its points are not shared out to MPI ranks): points = 'nodes' there")
         share = distribution.share(lambda n, split: cut_shares(resolve(case, path), path, n, split))
         case, mesh, set_cells = share.case, share.mesh, []
     part = share.partition if share is not None else None

@@ -12,7 +12,7 @@ from rockfrac.case.cohesive_section import CohesiveCommon, CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
-from rockfrac.elements.cse_facets import FacetEP, FacetRP
+from rockfrac.elements.cse_facets import FacetEP, FacetRP, facet_points
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.cse_nested import CohesiveRPNested
 from rockfrac.elements.ede import EmbeddedDruckerPrager, share_crack_paths
@@ -98,9 +98,11 @@ def is_embedded(case: Case, section: BulkSection, region: str) -> bool:
 
 
 def set_points(section: CohesiveCommon, mesh: Mesh, cells: np.ndarray, root: np.ndarray | None = None) -> InterfacePoints:
-    """The nodal integration points of a cohesive set's interface cells ``cells`` (rows of
-    mesh.interfaces), with the set's normals smoothed at the mesh's nodes if it asks for it
-    (``root``: :func:`tied_nodes` of the mesh, if made already)."""
+    """The integration points of a cohesive set's interface cells ``cells`` (rows of mesh.interfaces):
+    nodal, with the set's normals smoothed at the mesh's nodes if it asks for it (``root``:
+    :func:`tied_nodes` of the mesh, if made already), or one per cell (points = 'edges', 'faces')."""
+    if section.points != "nodes":
+        return facet_points(mesh.nodes, mesh.interfaces[cells])[0]
     points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
     angle = section.smoothing
     if angle is None:
@@ -143,7 +145,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
 
 
 def facet_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, path: str, fallback: str) -> list:
-    """The CSE group of a set with points = 'edges' or 'faces' (one point per interface cell of ``points``)."""
+    """The CSE group of a set with points = 'edges' or 'faces' (one point per interface cell of ``points``,
+    :func:`set_points`, in the order and with the places among the set's of ``points.index``)."""
     key = f"{path}: [cohesive] ({name}): points = {section.points!r}"
     right = "edges" if mesh.dim == 2 else "faces"
     if section.points != right:
@@ -152,9 +155,10 @@ def facet_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, p
     if fallback != "none":
         raise CaseError(f"{key} is integrated implicitly: [solver] fallback = {fallback!r} is for nodal points")
     if section.form is CohesiveForm.ep:
-        return [FacetEP(points.segments, mesh.nodes, law, name=name, viscosity=section.viscosity or 0.0)]
+        return [FacetEP(points.segments, mesh.nodes, law, name=name, viscosity=section.viscosity or 0.0,
+                        index=points.index)]
     return [FacetRP(points.segments, mesh.nodes, law, section.augmentation, name=name,
-                    viscosity=section.viscosity or 0.0)]
+                    viscosity=section.viscosity or 0.0, index=points.index)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

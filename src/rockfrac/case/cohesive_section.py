@@ -84,7 +84,7 @@ class CohesiveCommon(_Section):
         "along a frame they share)")
     points: Literal["nodes", "edges", "faces"] = Field(
         "nodes", description="where the integration points are: 'nodes' (one per node pair of the interface "
-        "cells, the paper's nodal integration), 'edges' (2D) or 'faces' (3D) (on one process: one per "
+        "cells, the paper's nodal integration), 'edges' (2D) or 'faces' (3D) (one per "
         "interface cell, its mean jump, and an elastic moment k/2 g^T S g on the normal jumps g of its node "
         "pairs, the penalty's energy of their zero-mean part, k L (g_1 - g_0)^2 / 24 on an edge; k = kn or "
         "the augmentation: with surfaces on every edge or face, no ring of pairs round a node holds "

@@ -94,7 +94,8 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     for section, cells in zip(case.cohesive_sets, set_cells):
         points = set_points(section, mesh, cells, root)
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
-        junction = at_junctions(mesh, points.minus, root) if section.form is CohesiveForm.rp else None
+        nodal_rp = section.form is CohesiveForm.rp and section.points == "nodes"  # facet points: no junction term
+        junction = at_junctions(mesh, points.minus, root) if nodal_rp else None
         sets.append((section, cells, points, where, junction))
     loops = None  # rigid-plastic surfaces: the pairs of every set on loops round a node (run.log warns)
     if rigid:

@@ -52,11 +52,14 @@ class FacetShape(NamedTuple):
     polar: np.ndarray | None
 
 
-def facet_points(nodes: np.ndarray, cells: np.ndarray) -> tuple[InterfacePoints, FacetShape]:
+def facet_points(nodes: np.ndarray, cells: np.ndarray,
+                 index: np.ndarray | None = None) -> tuple[InterfacePoints, FacetShape]:
     """One point per interface cell (m_0 .. m_{m-1}, p_0 .. p_{m-1}): a 2D edge (m = 2) or a 3D triangle
     or quadrilateral face (m = 3, 4), at its centroid, weight its length [m] or area [m^2]; frame rows
     (t, n) with t from m0 to m1 in 2D, (t1, t2, n) about the face's mean normal in 3D (the nodal points'
-    conventions); the points' (minus, plus) are the cells' first pair; and the cells' shapes."""
+    conventions); the points' (minus, plus) are the cells' first pair; and the cells' shapes. ``index``:
+    each cell's place among all of the set's (an MPI rank's share; default: these are all), which is
+    also the points' ``cell``."""
     cells = np.asarray(cells, dtype=np.int64)
     k, m = cells.shape[0], cells.shape[1] // 2
     xm = nodes[cells[:, :m]]
@@ -83,9 +86,10 @@ def facet_points(nodes: np.ndarray, cells: np.ndarray) -> tuple[InterfacePoints,
         torsion = np.einsum("qa,kqi,kq->kai", shape, arm, da)
         polar = np.einsum("kqi,kqi,kq->k", arm, arm, da)
     idx = np.arange(k)
+    place = idx if index is None else np.asarray(index, dtype=np.int64)
     pts = InterfacePoints(minus=cells[:, 0].copy(), plus=cells[:, m].copy(), weight=size, frame=frame,
-                          x=centre, cell=idx, segments=cells, segment_points=np.repeat(idx[:, None], m, axis=1),
-                          segment_x=xm)
+                          x=centre, cell=place.copy(), segments=cells, segment_points=np.repeat(idx[:, None], m, axis=1),
+                          segment_x=xm, index=place.copy())
     return pts, FacetShape(share, bending, torsion, polar)
 
 
@@ -129,7 +133,7 @@ class _OnFacets:
 
     def _sides(self, u: np.ndarray) -> np.ndarray:
         """The cells' nodal displacements (n, 2, m, dim) [m]: minus side, plus side."""
-        return u[self.jump_dofs].reshape(self.points.n, 2, -1, self.dim)
+        return u[self.jump_dofs].reshape(self.points.n, 2, self._cells.shape[1] // 2, self.dim)  # a rank may have none
 
     def jumps(self, u: np.ndarray) -> np.ndarray:
         """Global-frame mean jumps of the cells (n_pts, dim) [m]."""
@@ -184,7 +188,7 @@ class _OnFacets:
         m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]  # type: ignore[attr-defined]
         per_node = self._shape.share[:, :, None] * m[:, None, :]  # (n, m, d)
         grad = np.zeros(n_dofs)
-        np.add.at(grad, self.jump_dofs, np.concatenate([-per_node, per_node], axis=1).reshape(pts.n, -1))
+        np.add.at(grad, self.jump_dofs, np.concatenate([-per_node, per_node], axis=1).reshape(pts.n, self.jump_dofs.shape[1]))
 
         def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
             return float(np.sum(m * self.jumps(u))), grad
@@ -208,8 +212,8 @@ class FacetEP(_OnFacets, CohesiveEP):
     """EP surfaces with one point per interface cell (the moments' k: the law's kn, and kt for the torsion)."""
 
     def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, *, name: str = "cohesive",
-                 viscosity: float = 0.0):
-        points, shape = facet_points(nodes, cells)
+                 viscosity: float = 0.0, index: np.ndarray | None = None):
+        points, shape = facet_points(nodes, cells, index)
         super().__init__(points, law, name=name, viscosity=viscosity)
         assert law.kn is not None and law.kt is not None
         self.rotation_stiffness, self.torsion_stiffness = float(law.kn), float(law.kt)
@@ -221,8 +225,8 @@ class FacetRP(_OnFacets, CohesiveRP):
     term: a facet point closes no ring of pairs round a node."""
 
     def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, augmentation: float, *,
-                 name: str = "cohesive", viscosity: float = 0.0):
-        points, shape = facet_points(nodes, cells)
+                 name: str = "cohesive", viscosity: float = 0.0, index: np.ndarray | None = None):
+        points, shape = facet_points(nodes, cells, index)
         super().__init__(points, law, augmentation, junction=np.zeros(points.n, dtype=bool), name=name,
                          viscosity=viscosity)
         self.rotation_stiffness = self.torsion_stiffness = float(augmentation)

@@ -88,8 +88,8 @@ def facet_points(nodes: np.ndarray, cells: np.ndarray,
     idx = np.arange(k)
     place = idx if index is None else np.asarray(index, dtype=np.int64)
     pts = InterfacePoints(minus=cells[:, 0].copy(), plus=cells[:, m].copy(), weight=size, frame=frame,
-                          x=centre, cell=place.copy(), segments=cells, segment_points=np.repeat(idx[:, None], m, axis=1),
-                          segment_x=xm, index=place.copy())
+                          x=centre, cell=place.copy(), segments=cells,
+                          segment_points=np.repeat(idx[:, None], m, axis=1), segment_x=xm, index=place.copy())
     return pts, FacetShape(share, bending, torsion, polar)
 
 
@@ -133,7 +133,8 @@ class _OnFacets:
 
     def _sides(self, u: np.ndarray) -> np.ndarray:
         """The cells' nodal displacements (n, 2, m, dim) [m]: minus side, plus side."""
-        return u[self.jump_dofs].reshape(self.points.n, 2, self._cells.shape[1] // 2, self.dim)  # a rank may have none
+        m = self._cells.shape[1] // 2  # not -1: a rank may hold no cells
+        return u[self.jump_dofs].reshape(self.points.n, 2, m, self.dim)
 
     def jumps(self, u: np.ndarray) -> np.ndarray:
         """Global-frame mean jumps of the cells (n_pts, dim) [m]."""
@@ -188,7 +189,8 @@ class _OnFacets:
         m = self.flow_directions() * (pts.weight / pts.weight.sum())[:, None]  # type: ignore[attr-defined]
         per_node = self._shape.share[:, :, None] * m[:, None, :]  # (n, m, d)
         grad = np.zeros(n_dofs)
-        np.add.at(grad, self.jump_dofs, np.concatenate([-per_node, per_node], axis=1).reshape(pts.n, self.jump_dofs.shape[1]))
+        rows = np.concatenate([-per_node, per_node], axis=1).reshape(self.jump_dofs.shape)
+        np.add.at(grad, self.jump_dofs, rows)
 
         def measure(u: np.ndarray) -> tuple[float, np.ndarray]:
             return float(np.sum(m * self.jumps(u))), grad

@@ -453,8 +453,9 @@ def make_solver(name: str, coordinates: np.ndarray | None = None, n_dofs: int = 
     ``enrichment`` (their unknowns span the region that may crack: a Schur block as large as that
     is no preconditioner): GMRES + AMG, handing over to the direct backend at its first failure.
     PARDISO's solves are checked (``Checked``): under 'auto' PARDISO without matching (in the saddle
-    order where the tangent has multipliers after the displacements) retries an inaccurate one, and SuperLU one that stays inaccurate; each takes over where it is accurate
-    (three matrices); chosen by name, they are counted in the run's log."""
+    order where the tangent has multipliers after the displacements) retries an inaccurate one, and
+    SuperLU one that stays inaccurate; each takes over where it is accurate (three matrices); chosen
+    by name, they are counted in the run's log."""
     if name == "auto":
         installed = available()
         first = next(n for n in PREFERENCE if n in installed)

@@ -122,6 +122,23 @@ def restore_bundle(out: Path) -> bool:
     return True
 
 
+def saved_runs(saved: Path, specimen: str, size: float) -> dict:
+    """The rows of an earlier invocation's results for this mesh, by run key (a rerun of some variants
+    keeps the others' rows; each run carries its own date and load)."""
+    if not saved.exists():
+        return {}
+    old = json.loads(saved.read_text())
+    if old.get("size") != size:
+        return {}
+    default = 1e-4 if specimen == "disc" else 1e-3  # the rows before the displacement was a choice
+    rows = {}
+    for v in old.get("runs", {}).values():
+        if "variant" in v:
+            v.setdefault("displacement_m", default)
+            rows[run_key(v)] = v
+    return rows
+
+
 def run_key(rec: dict) -> str:
     """A run's name in the results: variant, nominal steps, displacement and (if not 0.5) the stop's fraction."""
     stop, aug, pen = rec.get("stop_fraction", 0.5), rec.get("augmentation"), rec.get("penalty")
@@ -271,15 +288,7 @@ def main() -> None:
     record: dict = {"machine": machine(), "load_start": os.getloadavg(), "specimen": args.specimen, "size": size,
                     "runs": {}}
     saved = HERE / "results" / f"{name}.json"
-    if saved.exists():  # a rerun of some variants keeps the others' rows (each run carries its own date/load)
-        old = json.loads(saved.read_text())
-        if old.get("size") == size:
-            default = 1e-4 if args.specimen == "disc" else 1e-3  # the rows before the displacement was a choice
-            for v in old.get("runs", {}).values():
-                if "variant" in v:
-                    v.setdefault("displacement_m", default)
-                    record["runs"][run_key(v)] = v
-    stopped, added = False, 0  # a stop signal; the rows this invocation added
+    stopped, added = False, {}  # a stop signal; the rows this invocation added
     for variant in args.variants:
         if stopped:
             break
@@ -338,11 +347,12 @@ def main() -> None:
                     for k in range(min(3, pieces["size"].shape[0]))],
                    "u_end_over_peak": float(h[reaction.replace("R_", "u_")][-1]
                                             / h[reaction.replace("R_", "u_")][int(np.argmax(r))])}
-            record["runs"][run_key(rec)] = rec
-            added += 1
+            added[run_key(rec)] = rec
             print(variant, steps, rec, flush=True)
     if args.variants and not added:  # every run stopped early: the table and its json stay as they were
         return
+    # read now, not at the start: an invocation running beside this one may have added its rows since
+    record["runs"] = {**saved_runs(saved, args.specimen, size), **added}
     order = {"ep": 0, "ep viscous": 1, "rp": 2, "rp viscous": 3}
     rows, labels = [], []
     ordered = sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0),

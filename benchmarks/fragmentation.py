@@ -151,13 +151,15 @@ def run_key(rec: dict) -> str:
 def solver_label(rec: dict) -> str:
     """The linear solver a run used: PARDISO unchecked before its solves were checked (rows without
     the log's solver lines), checked, or checked and then the backends that took over (in the order
-    they did, over the run's segments): PARDISO without matching, SuperLU."""
+    they did, over the run's segments): PARDISO without matching (in the saddle order), SuperLU."""
     lines = rec.get("solver")
     if lines is None:
         return "PARDISO, unchecked"
     took = [ln.rsplit("; ", 1)[-1] for ln in lines if ln.endswith("solved from then on")]
     if took:
-        names = ["PARDISO without matching" if t.startswith("pardiso without matching") else "SuperLU" for t in took]
+        names = ["PARDISO without matching, saddle order" if t.startswith("pardiso without matching, saddle")
+                 else "PARDISO without matching" if t.startswith("pardiso without matching") else "SuperLU"
+                 for t in took]
         return "PARDISO, then " + ", then ".join(names)
     return "PARDISO, checked" if lines and lines[0].startswith("pardiso, checked") else lines[0].split(" ([solver]")[0]
 

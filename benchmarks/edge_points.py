@@ -48,11 +48,13 @@ def hinged_edge_groups(*args, **kwargs) -> list:
     return groups
 
 
-def small_grains(form: str, points: str, steps: int, displacement: float, k: float, eta: float, runs: Path) -> dict:
-    """The small grains specimen of benchmarks/README.md (12 x 24 mm, 4 grains, 2 mm quads), viscous,
-    load control; EP's kn = kt = RP's augmentation = k."""
-    d = grains_case(0.002, runs)
-    d["mesh"].update(width=0.012, height=0.024, n_grains=4)
+def small_grains(form: str, points: str, steps: int, displacement: float, k: float, eta: float, runs: Path,
+                 size: float = 0.002) -> dict:
+    """The small grains specimen of benchmarks/README.md (12 x 24 mm, 4 grains, quads of ``size``, 2 mm
+    by default, with 24 nodes on each grain's circle at 2 mm and more in proportion on a finer mesh; the
+    grains' places do not depend on it), viscous, load control; EP's kn = kt = RP's augmentation = k."""
+    d = grains_case(size, runs)
+    d["mesh"].update(width=0.012, height=0.024, n_grains=4, points_per_circle=max(24, round(24 * 0.002 / size)))
     d["output"] = {"vtk": False, "picture": False, "points": False}
     st = d["stages"][0]
     st.update(steps=steps, control="load")
@@ -79,17 +81,19 @@ def main() -> None:
     ap.add_argument("--displacement", type=float, default=4e-4, help="the top's shortening [m]")
     ap.add_argument("--k", type=float, default=2e12, help="EP's kn = kt, RP's augmentation, the moment's k [Pa/m]")
     ap.add_argument("--viscosity", type=float, default=2.5e-5)
+    ap.add_argument("--size", type=float, nargs="+", default=[0.002],
+                    help="element sizes [m] (several: a refinement study, each size's runs in turn)")
     args = ap.parse_args()
-    print("| points | form | steps | wall [s] | ended | " + " | ".join(f"R_top_y at {f}" for f in FRACTIONS)
-          + " | D [J/m] |")
-    print("|---" * (6 + len(FRACTIONS)) + "|")
+    print("| size [mm] | points | form | interface points | steps | wall [s] | ended | "
+          + " | ".join(f"R_top_y at {f}" for f in FRACTIONS) + " | D [J/m] |")
+    print("|---" * (8 + len(FRACTIONS)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
-        for kind in args.points:
+        for size, kind in ((h, kind) for h in args.size for kind in args.points):
             build_groups.facet_groups = hinged_edge_groups if kind == "mean" else EDGE_GROUPS
             for form in args.forms:
-                out = Path(tmp) / f"{kind}_{form}"
+                out = Path(tmp) / f"{kind}_{form}_{size:g}"
                 case = small_grains(form, "nodes" if kind == "nodal" else "edges", args.steps, args.displacement,
-                                    args.k, args.viscosity, Path(tmp))
+                                    args.k, args.viscosity, Path(tmp), size)
                 t0 = time.perf_counter()
                 s = run_case(parse_case(case, "<edge_points>"), out)
                 wall = time.perf_counter() - t0
@@ -100,7 +104,9 @@ def main() -> None:
                     i = int(np.argmin(np.abs(lam - f)))
                     at.append(f"{-float(rows[i]['R_top_y']):.0f}" if abs(lam[i] - f) < 0.02 else "-")
                 ended = "stage done" if s.result.completed else f"stopped at {lam[-1]:.3f}"
-                print(f"| {kind} | {form.upper()} | {s.result.steps} | {wall:.0f} | {ended} | " + " | ".join(at)
+                points = sum(g.points.n for g in s.built.cohesives)
+                print(f"| {1e3 * size:g} | {kind} | {form.upper()} | {points} | {s.result.steps} | {wall:.0f} | {ended} | "
+                      + " | ".join(at)
                       + f" | {float(rows[-1]['D_dissipated']):.4f} |", flush=True)
 
 

@@ -133,3 +133,35 @@ def test_block_with_inclusion(element):
     assert set(plain.regions) == {"bulk"} and len(plain.regions["bulk"]) == 4
     with pytest.raises(ValueError, match="holds no cell centroid"):
         block_with_inclusion(W, H, 2, 2, (0.0, 0.0, 0.001, 0.001))
+
+
+def test_points_per_circle_refines_the_grains_through_the_case():
+    """[mesh] points_per_circle (kind = 'grains'): near the grains the circles' nodes, not element_size,
+    set the elements, so a refinement doubles both; the meshed grains' area then approaches the circles'
+    (the polygon's deficit falls like 1/n^2) and each grain's boundary has at least that many nodes."""
+    from rockfrac.case.build_mesh import make_mesh
+    from rockfrac.case.schema import parse_case
+
+    def mesh_of(points):
+        extra = {} if points is None else {"points_per_circle": points}
+        case = parse_case({"mesh": dict(kind="grains", width=W, height=H, n_grains=8, radius_min=0.004,
+                                        radius_max=0.006, seed=3, element_size=0.003, **extra),
+                           "bulk": {"E": 1e7, "nu": 0.2},
+                           "loading": {"confinement": 0.0, "axial_steps": 1, "axial_displacement": -1e-4}})
+        assert case.mesh.resolved().points_per_circle == (24 if points is None else points)
+        return make_mesh(case)
+
+    circles = place_grains(W, H, 8, (0.004, 0.006), seed=3)
+    exact = np.pi * np.sum(circles[:, 2] ** 2)
+    deficit = {}
+    for points in (None, 48):
+        mesh = mesh_of(points)
+        a = areas(mesh)
+        deficit[points] = 1.0 - a[mesh.regions["grains"]].sum() / exact
+        # every grain's circle: the nodes of the grain cells' outer edges within 1e-6 m of it
+        x = mesh.nodes[np.unique(mesh.cells[mesh.regions["grains"]])]
+        for cx, cy, r in circles:
+            on = np.abs(np.hypot(x[:, 0] - cx, x[:, 1] - cy) - r) < 1e-6
+            assert on.sum() >= (24 if points is None else 48)
+    assert deficit[None] > 0 and 0 < deficit[48] < 0.4 * deficit[None]
+    assert mesh_of(48).cells.shape[0] > 1.5 * mesh_of(None).cells.shape[0]

@@ -61,6 +61,8 @@ def test_ep_on_every_edge_is_softer_by_its_penalties(tmp_path):
     ({"mesh": {"kind": "block", "crack_angle": 0.3}}, "crack_angle do not apply to kind = 'block'"),
     ({"mesh": {"kind": "specimen", "element": "tet4"}}, "element = 'tet4' is for kind = 'block'"),
     ({"mesh": {"kind": "block", "nz": 2}}, "nz only apply to element = 'hex8' or 'tet4'"),
+    ({"mesh": {"kind": "block", "points_per_circle": 48}}, "points_per_circle do not apply to kind = 'block'"),
+    ({"mesh": {"kind": "grains", "points_per_circle": 6}}, "points_per_circle"),
     ({"mesh": {"kind": "block", "element": "tet4", "nx": 2, "ny": 2},
       "cohesive": dict(table1.CSE_LAW, form="ep", where="all", kn=1e10, kt=1e10)},
      "cohesive surfaces of a generated 3D mesh are not made: not with element = 'tet4'"),

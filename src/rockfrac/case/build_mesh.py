@@ -52,7 +52,8 @@ def make_mesh(case: Case, path: str = "<case>") -> Mesh:
 
             mesh = grain_specimen(m.width, m.height, n_grains=given(m.n_grains),
                                   radius=(given(m.radius_min), given(m.radius_max)), seed=given(m.seed),
-                                  element_size=m.element_size, element=plane_element(m.element.value))
+                                  element_size=m.element_size, element=plane_element(m.element.value),
+                                  points_per_circle=given(m.points_per_circle))
         elif m.kind is MeshKind.block and m.element.solid:
             box = None if m.inclusion is None else (m.inclusion[0], m.inclusion[1], m.inclusion[2], m.inclusion[3])
             mesh = hex_specimen(m.width, m.height, given(m.thickness), given(m.nx), given(m.ny), given(m.nz),

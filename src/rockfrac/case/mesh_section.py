@@ -36,7 +36,7 @@ class ElementType(str, Enum):
 MESH_KEYS = {  # keys of [mesh] beyond kind, element, width, height, per kind
     MeshKind.specimen: {"crack", "crack_angle", "nx", "ny", "thickness", "nz"},
     MeshKind.gmsh: {"file"},
-    MeshKind.grains: {"n_grains", "radius_min", "radius_max", "seed", "element_size"},
+    MeshKind.grains: {"n_grains", "radius_min", "radius_max", "seed", "element_size", "points_per_circle"},
     MeshKind.block: {"nx", "ny", "inclusion", "thickness", "nz"},
 }
 OPTIONAL_MESH_KEYS = set().union(*MESH_KEYS.values())
@@ -74,7 +74,10 @@ class MeshSection(_Section):
     radius_min: Length | None = Field(None, description="grains: smallest grain radius [m] (default W/25)")
     radius_max: Length | None = Field(None, description="grains: largest grain radius [m] (default W/12)")
     seed: int | None = Field(None, ge=0, le=2**32 - 1, description="grains: random seed of the placement (default 0)")
-    element_size: Length | None = Field(None, description="grains: target element size [m] (default W/40)")
+    element_size: Length | None = Field(None, description="grains: the largest element [m] (default W/40)")
+    points_per_circle: Count | None = Field(None, ge=8, le=10_000, description="grains: nodes at least on each grain's "
+                                            "circle (default 24; near the grains this, not element_size, sets the "
+                                            "elements' size: refine both together)")
     inclusion: list[Coordinate] | None = Field(None, description="block: weak region [x0, y0, x1, y1] [m]")
 
     @model_validator(mode="after")
@@ -135,7 +138,8 @@ class MeshSection(_Section):
             return self.model_copy(update={"n_grains": self.n_grains or 60, "radius_min": self.radius_min or w / 25,
                                            "radius_max": self.radius_max or w / 12,
                                            "seed": self.seed if self.seed is not None else 0,
-                                           "element_size": self.element_size or w / 40})
+                                           "element_size": self.element_size or w / 40,
+                                           "points_per_circle": self.points_per_circle or 24})
         if k is MeshKind.block and self.element.solid:
             return self.model_copy(update={"nx": self.nx or 1, "ny": self.ny or 1, "nz": self.nz or 1,
                                            "thickness": self.thickness or 0.08})

@@ -11,7 +11,10 @@ whole (benchmarks/README.md, "Smoothed normals"). This probe compares, on the sm
 - ``mean``: one point per edge on the edge's mean jump, two constraints an edge, so no ring, and no
   moment on the edge's relative rotation (a hinge; ``points = "edges"`` with the moment switched off);
 - ``mean+rotation``: ``[cohesive] points = "edges"`` as it is (rockfrac.elements.cse_facets): the mean
-  jump and the elastic moment k L g^2 / 24 on the difference g of the edge's end normal jumps.
+  jump and the moment k L (g - g_p)^2 / 24 on the difference g of the edge's end normal jumps, its end
+  tractions capped at the point's tensile strength (since 2026-12-02, sitting 61);
+- ``mean+elastic-rotation``: the same with the moment elastic whatever the point's state (the edge
+  points until sitting 61).
 
 Measured results: benchmarks/README.md, "Points per edge".
 ``.venv/bin/python benchmarks/edge_points.py [--points nodal mean mean+rotation] [--forms ep rp]``
@@ -48,6 +51,17 @@ def hinged_edge_groups(*args, **kwargs) -> list:
     return groups
 
 
+def elastic_moment_edge_groups(*args, **kwargs) -> list:
+    """points = 'edges' with the moment on the edges' rotation elastic (no cap)."""
+    groups = EDGE_GROUPS(*args, **kwargs)
+    for g in groups:
+        g.moment_cap = False
+    return groups
+
+
+VARIANTS = {"mean": hinged_edge_groups, "mean+elastic-rotation": elastic_moment_edge_groups}
+
+
 def small_grains(form: str, points: str, steps: int, displacement: float, k: float, eta: float, runs: Path,
                  size: float = 0.002) -> dict:
     """The small grains specimen of benchmarks/README.md (12 x 24 mm, 4 grains, quads of ``size``, 2 mm
@@ -75,7 +89,7 @@ def small_grains(form: str, points: str, steps: int, displacement: float, k: flo
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", nargs="+", default=["nodal", "mean", "mean+rotation"],
-                    choices=["nodal", "mean", "mean+rotation"])
+                    choices=["nodal", "mean", "mean+rotation", "mean+elastic-rotation"])
     ap.add_argument("--forms", nargs="+", default=["ep", "rp"], choices=["ep", "rp"])
     ap.add_argument("--steps", type=int, default=50)
     ap.add_argument("--displacement", type=float, default=4e-4, help="the top's shortening [m]")
@@ -89,7 +103,7 @@ def main() -> None:
     print("|---" * (8 + len(FRACTIONS)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
         for size, kind in ((h, kind) for h in args.size for kind in args.points):
-            build_groups.facet_groups = hinged_edge_groups if kind == "mean" else EDGE_GROUPS
+            build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
             for form in args.forms:
                 out = Path(tmp) / f"{kind}_{form}_{size:g}"
                 case = small_grains(form, "nodes" if kind == "nodal" else "edges", args.steps, args.displacement,

@@ -145,7 +145,8 @@ def run_key(rec: dict) -> str:
     return (f"{rec['variant']} {rec['nominal_steps']} {rec['displacement_m']:g}" + (f" stop {stop:g}" if stop != 0.5 else "")
             + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else "") + (" elim" if rec.get("elimination") else "")
             + (" smoothed" if rec.get("normals") == "smoothed" else "")
-            + (" edges" if rec.get("points_per") == "edges" else ""))
+            + (" edges" if rec.get("points_per") == "edges" else "")
+            + (" elastic-moment" if rec.get("moment") == "elastic" else ""))
 
 
 def solver_label(rec: dict) -> str:
@@ -340,6 +341,7 @@ def main() -> None:
                    "viscosity": eta if variant.endswith("viscous") else None,
                    "augmentation": aug, "penalty": pen, "elimination": args.elimination, "normals": args.normals,
                    "points_per": args.points,
+                   **({"moment": "capped"} if args.points == "edges" else {}),
                    "displacement_m": -float(loaded["y"]), "stop_fraction": args.stop_fraction, "pieces": int(h["n_fragments"][-1]),
                    "separated_m": float(h["separated"][-1]),
                    "split_step": int(h["step"][split[0]]) if split.size else None,
@@ -368,6 +370,7 @@ def main() -> None:
         label += ", elimination" if rec.get("elimination") else ""
         label += ", smoothed normals" if rec.get("normals") == "smoothed" else ""
         label += ", points on edges" if rec.get("points_per") == "edges" else ""
+        label += " (elastic moment)" if rec.get("moment") == "elastic" else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,
                      rec["nominal_steps"], f"{1e3 * rec['displacement_m']:g}" if "displacement_m" in rec else "-", rec["points"], rec["steps"], f"{rec['iterations_per_step']:.2f}",

@@ -50,23 +50,27 @@ def _model(cohesive: dict):
     return built, model
 
 
-@pytest.mark.parametrize("cohesive", [EP_EDGES, RP_EDGES], ids=["ep", "rp"])
+@pytest.mark.parametrize("cohesive", [EP_EDGES, dict(RP_EDGES, augmentation=1e13)], ids=["ep", "rp"])
 def test_edge_points_tangent_is_the_derivative_of_their_forces(cohesive):
     """The consistent tangent of edge points, moment included, against central differences of the
-    internal forces, at a state where some points are plastic and others are not (EP: jumps of a few
-    strengths over kn; RP: multipliers of that size, and jumps)."""
+    internal forces, at a state where some points are plastic and others are not, and some moments
+    are on their caps (EP: jumps of a few strengths over kn; RP: multipliers of that size, and jumps;
+    k = 1e13 Pa/m)."""
     built, model = _model(cohesive)
-    check_cohesive_tangent(model, built.cohesives[0], seed=3, step=1e-4)
+    group = built.cohesives[0]
+    check_cohesive_tangent(model, group, seed=3, step=1e-4)
+    assert 0 < np.count_nonzero(group.capped) < group.points.n  # capped moments and elastic ones
 
 
 def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
     """An edge whose normal jump runs linearly from -a to +a along it (mean zero, so the law's point sees
     no jump): the moment's energy k L g^2 / 24 is the penalty's energy of that jump, int kn j(s)^2 / 2
-    ds = kn a^2 L / 6 (Gauss), and the edge's forces are that energy's gradient."""
+    ds = kn a^2 L / 6 (Gauss), and the edge's forces are that energy's gradient (below the cap: its end
+    tractions' deviation kn a = 1e4 Pa, where the virgin tensile strength is 15680 Pa)."""
     built, model = _model(EP_EDGES)
     group = built.cohesives[0]
     assert isinstance(group, FacetEP)
-    d, a, k = 2, 1e-7, 5
+    d, a, k = 2, 1e-9, 5
     n = group.points.frame[k, 1]
     m0, m1, p0, p1 = (group.jump_dofs[k, i * d:(i + 1) * d] for i in range(4))
     u = np.zeros(model.n_dofs)
@@ -75,7 +79,7 @@ def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
     u[p1] += 0.5 * a * n
     u[m1] -= 0.5 * a * n
     length = group.points.weight[k]
-    assert np.abs(group.jumps(u)[k]).max() < 1e-25
+    assert np.abs(group.jumps(u)[k]).max() < 1e-27
 
     def energy(v: np.ndarray) -> float:  # the edge's moment
         return float(group.moment_energies(v)[k])
@@ -92,6 +96,51 @@ def test_the_moment_is_the_penalty_energy_of_a_linear_normal_jump():
         e[j] = 1e-3 * a
         grad = (energy(u + e) - energy(u - e)) / (2e-3 * a)
         assert fe[col] == pytest.approx(grad, rel=1e-8, abs=1e-12 * np.abs(fe).max())
+
+
+def _bent_edge(group, k: int, mean: float, rho: float, n_dofs: int) -> np.ndarray:
+    """Displacements that give edge k of ``group`` the normal jumps mean -+ rho / 2 at its ends [m]."""
+    d = 2
+    n = group.points.frame[k, 1]
+    m0, m1, p0, p1 = (group.jump_dofs[k, i * d:(i + 1) * d] for i in range(4))
+    u = np.zeros(n_dofs)
+    u[p0] += (mean - 0.5 * rho) * n
+    u[p1] += (mean + 0.5 * rho) * n
+    return u
+
+
+def test_a_bent_edge_carries_its_moment_up_to_the_tension_cap():
+    """An edge in compression (mean normal jump -1e-8 m, T_n = kn x that = -1e5 Pa) bent by a normal jump
+    difference rho: elastic, its end tractions deviate by kn rho / 2; bent further, the opening end's
+    traction T_n + Delta stops at the tensile strength chi and the rest of rho is plastic; the moment's
+    stored energy is L Delta^2 / (6 kn), and its dissipation the work Q d rho_p (Q = L Delta / 6). An
+    edge that has opened past its strength (T_n on the cap) is a hinge: no moment."""
+    built, model = _model(EP_EDGES)
+    group = built.cohesives[0]
+    k, kn, length = 5, 1e13, group.points.weight[5]
+    zero = np.zeros(model.n_dofs)
+
+    def bend(mean: float, rho: float) -> tuple[float, float, float]:
+        model.begin_step()
+        group.evaluate(_bent_edge(group, k, mean, rho, model.n_dofs), zero)
+        chi = group.law.records(group.trial)[group.law.tensile_record][k]
+        return group.trial[k, 1], 6.0 * group._force_trial[k, 1] / length, chi  # T_n, Delta, chi
+
+    t_n, delta, chi = bend(-1e-8, 1e-9)
+    assert t_n == pytest.approx(-1e5, rel=1e-12) and chi == 15680.0
+    assert delta == pytest.approx(0.5 * kn * 1e-9, rel=1e-12) and not group.capped[k]
+    rho = 1e-7  # elastic: Delta = 5e5 Pa, past the cap chi - T_n = 115680 Pa
+    t_n, delta, chi = bend(-1e-8, rho)
+    assert group.capped[k] and t_n + delta == pytest.approx(chi, rel=1e-12)
+    u = _bent_edge(group, k, -1e-8, rho, model.n_dofs)
+    group.commit()
+    rho_p = rho - 2.0 * delta / kn
+    assert group.bend_plastic[k, 1] - group.bend_plastic[k, 0] == pytest.approx(rho_p, rel=1e-12)
+    assert group.moment_energies(u)[k] == pytest.approx(length * delta ** 2 / (6.0 * kn), rel=1e-9)
+    assert group.moment_dissipated == pytest.approx(0.5 * length * delta / 6.0 * rho_p, rel=1e-9)
+    t_n, delta, chi = bend(1e-6, 1e-7)  # opened 64 times its elastic limit: on the cap, a hinge
+    assert group.trial[k, group.mode] == 1.0 and t_n == pytest.approx(chi, rel=1e-9)
+    assert abs(delta) <= 1e-9 * 15680.0
 
 
 def small_grains(form: str, points: str) -> dict:
@@ -186,3 +235,31 @@ def test_facet_points_take_their_places_among_the_sets():
     np.testing.assert_array_equal(part.points.cell, keep)
     np.testing.assert_allclose(part.points.weight, whole.points.weight[keep], rtol=1e-15)
     np.testing.assert_allclose(part.points.frame, whole.points.frame[keep], rtol=1e-15)
+
+
+def test_edge_points_break_a_notched_beam_as_nodal_points_do(tmp_path):
+    """Three-point bending of the notched beam (tests/test_rock_tests.py) with RP edge points on the
+    ligament: the edges at the crack tip open at one end, which the bending's cap allows (an elastic
+    moment held them: the load rose to 2e5 N/m, 6.6 times the peak, with nothing broken). The peak is the
+    nodal points' to 0.5 %, and the dissipation with the load's tail still to come, P delta, is G_c times
+    the ligament to 2 %, as for nodal points."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from test_rock_tests import example
+
+    msh = rt.notched_beam(tmp_path / "beam.msh", element_size=0.0025)
+    peaks = {}
+    for points in ("nodes", "edges"):
+        data = example("bending/notched_beam.toml", msh, **{"0__steps": 500})
+        data["cohesive"]["points"] = points
+        s = run_case(parse_case(data, points), tmp_path / points)
+        h = read_csv(tmp_path / points / "history.csv")
+        assert s.result.completed and "fell below 0.005" in s.result.message
+        gc_l = data["cohesive"]["Gc"] * 0.035
+        tail = abs(h["R_load_y"][-1] * h["u_load_y"][-1]) / gc_l
+        assert 0.9 < h["D_dissipated"][-1] / gc_l < 1.0
+        assert h["D_dissipated"][-1] / gc_l + tail == pytest.approx(1.0, abs=0.02)
+        assert np.abs(h["energy_error"]).max() < 1e-9 * h["W_external"][-1]
+        peaks[points] = -h["R_load_y"].min()
+    assert peaks["edges"] == pytest.approx(peaks["nodes"], rel=5e-3)
+    group = s.built.cohesives[0]
+    assert isinstance(group, FacetRP) and group.moment_dissipated > 0.0

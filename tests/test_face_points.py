@@ -154,7 +154,8 @@ def test_face_shapes_against_gauss_integrals(corners):
 def test_face_points_tangent_is_the_derivative_of_their_forces(tmp_path, form):
     """The consistent tangent of face points on every face of a tetrahedral box, moments included,
     against central differences of the internal forces, at a state where some points are plastic and
-    others are not."""
+    others are not, and some faces' bending is on its cap (corner tractions at the tensile strength,
+    radially returned) and others' is not."""
     path = rt.box(tmp_path / "box.msh", (0.02, 0.02, 0.02), (2, 2, 2), element="tet4")
     law = dict(table1.CSE_LAW, form=form, where="all", points=POINTS,
                **({"kn": 1e13, "kt": 1e13} if form == "ep" else {"augmentation": 1e13}))
@@ -168,6 +169,7 @@ def test_face_points_tangent_is_the_derivative_of_their_forces(tmp_path, form):
     # steps of 1e-6: the hyperbola's apex is curved on the scale of 1e-10 m (the error falls as h^2)
     u = check_cohesive_tangent(model, group, seed=5, step=1e-6)
     assert group.moment_energy(u) > 0.0
+    assert 0 < np.count_nonzero(group.capped) < group.points.n
 
 
 def sheared_column(path, form: str) -> dict:

@@ -21,7 +21,17 @@ elastically, with no unknown added:
   normals as a mechanism.
 
 So the yielded cells do not turn about their centroids as hinges, and a plane's stretch is left to
-the bulk. The law, its return, the viscosity and the RP multipliers are the nodal points' own: each
+the bulk. The bending is elastic-plastic: its traction at each corner v, T_n + k e_v (e the zero-mean
+part of g - g_p, g_p the bending's plastic part), stays below the point's tension cap,
+
+      k max_v e_v <= C,   C = max(0, chi - T_n)   (chi: the law's tensile strength, T_n: its normal traction)
+
+returned radially (e scaled to the cap; in 2D |Delta| <= C, Delta = k (g_1 - g_0 - rho_p) / 2 the end
+tractions' deviation, the moment L Delta / 6 conjugate to g_1 - g_0). So an edge that has opened at
+one end rocks open like a pair of nodal points, and an edge in compression keeps its moment up to
+the pressure. The tangent is consistent: dC/d(jump, multiplier) by forward differences of the
+law's own update at the capped points only. The plastic bending dissipates q . dg_p (kept in
+``dissipated``, reported apart as ``moment_dissipated``); the torsion stays elastic. The law, its return, the viscosity and the RP multipliers are the nodal points' own: each
 point's rows (minus, plus[, multiplier]) are mapped onto the cell's nodes, each node taking its share
 w_a / A.
 """
@@ -39,6 +49,7 @@ from rockfrac.elements.interface_points import InterfacePoints, local_frames_3d
 from rockfrac.fem.loads import face_rule
 from rockfrac.laws.law3d import Law3D
 from rockfrac.laws.traction_law import TractionLaw
+from rockfrac.laws.viscous import duvaut_lions_points, duvaut_lions_rp_points
 
 
 class FacetShape(NamedTuple):
@@ -102,7 +113,11 @@ class _OnFacets:
     points: InterfacePoints
     jump_dofs: np.ndarray
     dofs: np.ndarray
+    rigid: bool  # RP (the multipliers' rows follow the cell's displacement rows)
+    dissipated: float  # the group's work account [J/m, J]
     rotation_stiffness: float  # k of the bending [Pa/m]
+    moment_cap: bool = True  # the bending's corner tractions capped by the tension cap (False: elastic)
+    FD_STEP = 1e-7  # the differences' step for dC/d(jump, multiplier): this fraction of the law's strength
     torsion_stiffness: float  # k_t of the torsion [Pa/m] (3D)
     _cells: np.ndarray  # (n, 2 m): each point's cell
     _shape: FacetShape
@@ -128,6 +143,12 @@ class _OnFacets:
             rows[:, a, 1, a] = normal
         self._normal_rows = rows.reshape(n, m, 2 * m * d)
         self._torsion_rows = None
+        self.bend_plastic = np.zeros((n, m))  # committed plastic normal jumps of the bending g_p [m]
+        self.bend_force = np.zeros((n, m))  # committed bending forces q = k S (g - g_p) [N/m, N/m^... per m]
+        self.moment_dissipated = 0.0  # sum of q . d g_p over the committed steps [J/m in 2D, J in 3D]
+        self._bend_trial = np.zeros((n, m))
+        self._force_trial = np.zeros((n, m))
+        self.capped = np.zeros(n, dtype=bool)  # the points whose bending is on its cap (last evaluation)
         if shape.torsion is not None:
             self._torsion_rows = np.concatenate([-shape.torsion, shape.torsion], axis=1).reshape(n, 2 * m * d)
 
@@ -151,8 +172,9 @@ class _OnFacets:
         return np.einsum("pj,pj->p", self._torsion_rows, u[self.jump_dofs]) / self._shape.polar
 
     def moment_energies(self, u: np.ndarray) -> np.ndarray:
-        """Each cell's moment energy, bending k/2 g^T S g and torsion k_t/2 I twist^2 [J/m in 2D, J in 3D]."""
-        g = self.normal_jumps(u)
+        """Each cell's moment energy, bending k/2 (g - g_p)^T S (g - g_p) and torsion k_t/2 I twist^2 [J/m in
+        2D, J in 3D]."""
+        g = self.normal_jumps(u) - self.bend_plastic
         out = 0.5 * self.rotation_stiffness * np.einsum("pa,pab,pb->p", g, self._shape.bending, g)
         if self._torsion_rows is not None:
             assert self._shape.polar is not None
@@ -167,21 +189,149 @@ class _OnFacets:
         """The law's stored energy at the points and the moments' [J/m, J]."""
         return super().elastic_energy(u) + self.moment_energy(u)  # type: ignore[misc]
 
-    def _facet_rows(self, ev: Evaluation, u: np.ndarray) -> Evaluation:
-        src, c, share = self._source, self._normal_rows, self._share
-        n_u = c.shape[2]
+    def _mean_rows(self) -> np.ndarray:
+        """(n, dim, 2 m dim): the mean jump's global components over the cell's displacement dofs."""
+        d, (n, m) = self.dim, self._shape.share.shape
+        rows = np.zeros((n, d, 2, m, d))
+        for i in range(d):
+            rows[:, i, 0, :, i] = -self._shape.share
+            rows[:, i, 1, :, i] = self._shape.share
+        return rows.reshape(n, d, 2 * m * d)
+
+    def _cap(self, state: np.ndarray) -> np.ndarray:
+        """The bending's cap C = max(0, chi - T_n) [Pa] at states (k, n_state)."""
+        return np.maximum(self._strength(state) - state[:, self.dim - 1], 0.0)
+
+    def _states_at(self, idx: np.ndarray, djump: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
+        """The trial states (k, n_state) of the points idx at mean-jump increments djump (k, dim) [m] (and
+        multipliers lam (k, dim) [Pa], RP) in the global frame, by the group's own update (the EP and RP
+        groups')."""
+        raise NotImplementedError
+
+    def _strength(self, state: np.ndarray) -> np.ndarray:
+        """The law's tensile strength chi [Pa] at states (k, n_state)."""
+        return self.law.records(state)[self.law.tensile_record]  # type: ignore[attr-defined]
+
+    def _differenced(self, idx: np.ndarray, of, djump: np.ndarray, lam: np.ndarray | None,
+                     lam_too: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """Forward differences of of(state) (k,) at the points idx in the global components of their
+        mean-jump increments djump (k, dim) and, with lam_too, of their multipliers lam (k, dim): (k, dim)
+        each [per m, per Pa], from this iterate's value of(self.trial[idx]); steps of FD_STEP of the
+        law's strength (over the penalty or augmentation for the jumps)."""
+        law, d = self.law, self.dim  # type: ignore[attr-defined]
+        k = max(law.kn or 0.0, getattr(self, "aug", 0.0))
+        h = self.FD_STEP * law.scale
+        base = of(self.trial[idx])  # type: ignore[attr-defined]
+        by_jump = np.empty((idx.size, d))
+        for i in range(d):
+            dj = djump.copy()
+            dj[:, i] += h / k
+            by_jump[:, i] = (of(self._states_at(idx, dj, lam)) - base) / (h / k)
+        if not lam_too:
+            return by_jump, None
+        assert lam is not None
+        by_lam = np.empty((idx.size, d))
+        for i in range(d):
+            dl = lam.copy()
+            dl[:, i] += h
+            by_lam[:, i] = (of(self._states_at(idx, djump, dl)) - base) / h
+        return by_jump, by_lam
+
+    def _cap_gradient(self, idx: np.ndarray, u: np.ndarray, u_n: np.ndarray) -> np.ndarray:
+        """dC/d(the cell's dofs) (k, rows) at the points idx (C = chi - T_n > 0 there). EP: dT_n/dJ from the
+        law's consistent tangent, dchi/dJ by differences of the group's own update (the law's return,
+        rescued, viscous) at its plastic points (elsewhere chi does not move); RP: both by differences in
+        the jump and the multipliers, T_n depending on both."""
+        d = self.dim
+        djump = (self.jumps(u) - self.jumps(u_n))[idx]
+        n_u = self._normal_rows.shape[2]
+        mean = self._mean_rows()[idx]  # (k, dim, n_u): the mean jump's global components
+        grad = np.zeros((idx.size, n_u + (d if self.rigid else 0)))
+        if self.rigid:
+            lam = u[self.lam_dofs[idx]]  # type: ignore[attr-defined]
+            by_jump, by_lam = self._differenced(idx, lambda st: self._cap(st), djump, lam, True)
+            assert by_lam is not None
+            grad[:, n_u:] = by_lam
+        else:
+            frame = self.points.frame[idx]
+            by_jump = -np.einsum("pj,pji->pi", self.trial_tangent[idx, d - 1], frame)  # type: ignore[attr-defined]
+            plastic = self.trial[idx, self.mode] == 1.0  # type: ignore[attr-defined]
+            if plastic.any():
+                at = idx[plastic]
+                by_jump[plastic] += self._differenced(at, self._strength, djump[plastic], None, False)[0]
+        grad[:, :n_u] = np.einsum("pi,pij->pj", by_jump, mean)
+        return grad
+
+    def _bending(self, u: np.ndarray, u_n: np.ndarray, fe: np.ndarray, ke: np.ndarray) -> int:
+        """Add the bending's forces and tangent to the cells' rows (in place); the points whose cap
+        switched (elastic to capped or back) since the last iterate."""
+        c, s_mat, share = self._normal_rows, self._shape.bending, self._shape.share
+        n_u, k = c.shape[2], self.rotation_stiffness
+        g = self.normal_jumps(u)
+        e = g - self.bend_plastic
+        e -= np.einsum("pa,pa->p", share, e)[:, None]  # the zero-mean part: the corners' deviation over k
+        top = np.argmax(e, axis=1) if e.size else np.zeros(0, dtype=np.int64)
+        peak = k * np.take_along_axis(e, top[:, None], axis=1)[:, 0] if e.size else np.zeros(0)
+        capped = np.zeros(e.shape[0], dtype=bool)
+        if self.moment_cap and e.size:
+            cap = self._cap(self.trial)  # type: ignore[attr-defined]
+            capped = peak > cap
+        ks = k * s_mat
+        stiff = np.einsum("pai,paj->pij", c, np.einsum("pab,pbj->paj", ks, c))
+        beta = np.ones(e.shape[0])
+        if capped.any():  # e scaled to the cap, relaxed as the law is (Duvaut-Lions: a = 1 without viscosity)
+            a = self.blend() if self.viscosity > 0.0 else 1.0  # type: ignore[attr-defined]
+            i = np.flatnonzero(capped)
+            beta[i] = 1.0 - a + a * cap[i] / peak[i]
+            e_top = peak[i] / k
+            proj = np.eye(e.shape[1])[None] - share[i][:, None, :] * np.ones(e.shape[1])[None, :, None]
+            row = proj[np.arange(i.size), top[i]]  # d e_top / d g
+            dq = (a * cap[i] / e_top)[:, None, None] * np.einsum(
+                "pab,pbc->pac", s_mat[i], proj - e[i][:, :, None] * row[:, None, :] / e_top[:, None, None])
+            dq += (1.0 - a) * ks[i]
+            stiff[i] = np.einsum("pai,paj->pij", c[i], np.einsum("pab,pbj->paj", dq, c[i]))
+            dq_dc = a * np.einsum("pab,pb->pa", s_mat[i], e[i]) / e_top[:, None]
+            ke[i, :n_u, :] += np.einsum("pai,pa,pj->pij", c[i], dq_dc, self._cap_gradient(i, u, u_n))
+        e_new = beta[:, None] * e
+        q = k * np.einsum("pab,pb->pa", s_mat, e_new)
+        self._bend_trial = g - e_new
+        self._force_trial = q
+        switched = int(np.count_nonzero(capped != self.capped))
+        self.capped = capped
+        fe[:, :n_u] += np.einsum("paj,pa->pj", c, q)
+        ke[:, :n_u, :n_u] += stiff
+        return switched
+
+    def _facet_rows(self, ev: Evaluation, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
+        src, share = self._source, self._share
+        n_u = self._normal_rows.shape[2]
         fe = ev.fe[:, src] * share
         ke = ev.ke[:, src[:, None], src[None, :]] * share[:, :, None] * share[:, None, :]
-        ks = self.rotation_stiffness * self._shape.bending
-        fe[:, :n_u] += np.einsum("paj,pab,pb->pj", c, ks, self.normal_jumps(u))
-        ke[:, :n_u, :n_u] += np.einsum("pai,paj->pij", c, np.einsum("pab,pbj->paj", ks, c))
+        switched = self._bending(u, u_n, fe, ke)
         if self._torsion_rows is not None:
             assert self._shape.polar is not None
             r = self._torsion_rows
             kt = self.torsion_stiffness / self._shape.polar
             fe[:, :n_u] += (kt * np.einsum("pj,pj->p", r, u[self.jump_dofs]))[:, None] * r
             ke[:, :n_u, :n_u] += kt[:, None, None] * r[:, :, None] * r[:, None, :]
-        return replace(ev, fe=fe, ke=ke)
+        return replace(ev, fe=fe, ke=ke, n_switched=ev.n_switched + switched)
+
+    def begin_step(self) -> None:
+        super().begin_step()  # type: ignore[misc]
+        self._bend_trial[:] = self.bend_plastic
+        self._force_trial[:] = self.bend_force
+
+    def commit(self) -> None:
+        """The law's commit, and the bending's: its plastic part, and its dissipation q . dg_p
+        (trapezoidal, as the law's work)."""
+        dgp = self._bend_trial - self.bend_plastic
+        mean = 0.5 * (self._force_trial + self.bend_force)
+        spent = float(np.einsum("pa,pa->", mean, dgp))
+        self.moment_dissipated += spent
+        self.dissipated += spent
+        self.bend_plastic[:] = self._bend_trial
+        self.bend_force[:] = self._force_trial
+        super().commit()  # type: ignore[misc]
 
     def jump_measure(self, n_dofs: int) -> Measure:
         """The nodal points' path measure on the cells' mean jumps."""
@@ -199,7 +349,7 @@ class _OnFacets:
 
     def evaluate(self, u: np.ndarray, u_n: np.ndarray) -> Evaluation:
         """The nodal points' evaluation at the cells' mean jumps, on the cells' nodes, with the moments."""
-        return self._facet_rows(super().evaluate(u, u_n), u)  # type: ignore[misc]
+        return self._facet_rows(super().evaluate(u, u_n), u, u_n)  # type: ignore[misc]
 
     def separated(self, fraction: float) -> tuple[np.ndarray, float]:
         """The separated cells' split node pairs (k, 2), all of each cell's (a separated point parts its
@@ -208,6 +358,9 @@ class _OnFacets:
         m = self._cells.shape[1] // 2
         pairs = np.stack([self._cells[hit, :m], self._cells[hit, m:]], axis=2).reshape(-1, 2)
         return pairs[pairs[:, 0] != pairs[:, 1]], float(self.points.weight[hit].sum())
+
+
+BENDING_STATE = ("bend_plastic", "bend_force", "moment_dissipated")  # the bending's committed state
 
 
 class FacetEP(_OnFacets, CohesiveEP):
@@ -221,6 +374,25 @@ class FacetEP(_OnFacets, CohesiveEP):
         self.rotation_stiffness, self.torsion_stiffness = float(law.kn), float(law.kt)
         self._on_facets(points.segments, shape, multipliers=False)
 
+    checkpoint_attrs = CohesiveEP.checkpoint_attrs + BENDING_STATE
+
+    def _states_at(self, idx: np.ndarray, djump: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
+        """The trial states (k, n_state) of the points idx at mean-jump increments djump (k, dim) [m]
+        (global), by the group's own update (the law's return, rescued; viscous), nothing of the group
+        changed."""
+        pts, law, k, d = self.points, self.law, idx.size, self.dim
+        s_new, d_new = self.trial[idx], self.trial_tangent[idx]
+        fe, ke, status = np.empty((k, 2 * d)), np.empty((k, 2 * d, 2 * d)), np.zeros(k, dtype=np.int64)
+        frame, weight = pts.frame[idx], pts.weight[idx]
+        law.ep_points(frame, weight, djump, self._committed_for_return()[idx], self.tangent[idx], s_new, d_new,
+                      fe, ke, status)
+        if self.viscosity > 0.0:
+            assert law.kt is not None and law.kn is not None
+            duvaut_lions_points(frame, weight, djump, self.state[idx], s_new, d_new, self.blend(), float(law.kt),
+                                float(law.kn), np.int64(law.dgamma_slot), np.int64(self.mode), np.empty((k, d)),
+                                fe, ke)
+        return s_new
+
 
 class FacetRP(_OnFacets, CohesiveRP):
     """RP surfaces with one point per interface cell (the moments' k: the augmentation r). No junction
@@ -233,6 +405,26 @@ class FacetRP(_OnFacets, CohesiveRP):
                          viscosity=viscosity)
         self.rotation_stiffness = self.torsion_stiffness = float(augmentation)
         self._on_facets(points.segments, shape, multipliers=True)
+
+    checkpoint_attrs = CohesiveRP.checkpoint_attrs + BENDING_STATE
+
+    def _states_at(self, idx: np.ndarray, djump: np.ndarray, lam: np.ndarray | None) -> np.ndarray:
+        """The trial states (k, n_state) of the points idx at mean-jump increments djump (k, dim) [m] and
+        multipliers lam (k, dim) [Pa] (global), by the group's own update from this iterate's modes and
+        pins (the augmented return, rescued; viscous), nothing of the group changed."""
+        assert lam is not None
+        pts, law, k, d = self.points, self.law, idx.size, self.dim
+        s_new, d_new = self.trial[idx], self.trial_tangent[idx]
+        fe, ke = np.empty((k, 3 * d)), np.empty((k, 3 * d, 3 * d))
+        status, switched = np.zeros(k, dtype=np.int64), np.zeros(k, dtype=np.int64)
+        frame, weight, eps = pts.frame[idx], pts.weight[idx], self.eps[idx]
+        committed = self._committed_for_return()[idx]
+        law.rp_points(frame, weight, djump, lam, self.aug, eps, self._pinned[idx], committed, self.tangent[idx],
+                      self.trial[idx, self.mode], s_new, d_new, fe, ke, status, switched)
+        if self.viscosity > 0.0:
+            duvaut_lions_rp_points(frame, weight, djump, lam, self.aug, eps, committed, s_new, d_new, self.blend(),
+                                   np.int64(law.dgamma_slot), np.int64(self.mode), np.empty((k, d)), fe, ke)
+        return s_new
 
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Multiplier dofs whose mean jump the Dirichlet conditions hold: every node of the cell held in

@@ -40,6 +40,7 @@ class Law3D:
         self.mode_slot = mode_slot_3d(type(law))
         self.dgamma_slot = dgamma_slot_3d(type(law))
         self.record_names = law.record_names
+        self.tensile_record = law.tensile_record
 
     @property
     def n_state(self) -> int:

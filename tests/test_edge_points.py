@@ -1,5 +1,5 @@
 """[cohesive] points = 'edges' (rockfrac.elements.cse_facets): one point per edge on its mean jump, with an
-elastic moment on the edge's relative rotation, instead of one point per node pair."""
+moment on the edge's relative rotation (elastic up to the tension cap), instead of one point per node pair."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """[cohesive] points = 'faces' (rockfrac.elements.cse_facets, 3D): one point per interface face on its
-mean jump, with elastic moments on the face's relative rotations (bending on its normal jumps' zero-mean
-part, torsion about its normal)."""
+mean jump, with moments on the face's relative rotations (bending on its normal jumps' zero-mean part,
+capped at the tension cap; torsion about its normal, elastic)."""
 
 from __future__ import annotations
 

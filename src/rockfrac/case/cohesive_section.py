@@ -85,8 +85,9 @@ class CohesiveCommon(_Section):
     points: Literal["nodes", "edges", "faces"] = Field(
         "nodes", description="where the integration points are: 'nodes' (one per node pair of the interface "
         "cells, the paper's nodal integration), 'edges' (2D) or 'faces' (3D) (one per "
-        "interface cell, its mean jump, and an elastic moment k/2 g^T S g on the normal jumps g of its node "
-        "pairs, the penalty's energy of their zero-mean part, k L (g_1 - g_0)^2 / 24 on an edge; k = kn or "
+        "interface cell, its mean jump, and a moment k/2 (g - g_p)^T S (g - g_p) on the normal jumps g of its "
+        "node pairs, the penalty's energy of their zero-mean part, k L (g_1 - g_0 - rho_p)^2 / 24 on an edge, "
+        "its corner tractions capped at the point's tensile strength; k = kn or "
         "the augmentation: with surfaces on every edge or face, no ring of pairs round a node holds "
         "rigid-plastic surfaces shut; rockfrac.elements.cse_facets)")
     smoothing_angle: Angle | None = Field(

@@ -1,6 +1,6 @@
 """Cohesive surfaces with one point per interface cell (``[cohesive] points = "edges"`` in 2D, ``"faces"``
-in 3D): the point's jump is its edge's or face's mean jump, and elastic moments resist the cell's
-relative rotations.
+in 3D): the point's jump is its edge's or face's mean jump, and moments, elastic up to the tension
+cap, resist the cell's relative rotations.
 
 rockfrac's nodal points (paper Sect. 6.2) put a point on each (minus, plus) node pair. With surfaces
 on every edge a node is split into one copy per cell and its pairs close a ring whose jumps sum to

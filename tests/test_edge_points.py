@@ -259,7 +259,10 @@ def test_edge_points_break_a_notched_beam_as_nodal_points_do(tmp_path):
         assert 0.9 < h["D_dissipated"][-1] / gc_l < 1.0
         assert h["D_dissipated"][-1] / gc_l + tail == pytest.approx(1.0, abs=0.02)
         assert np.abs(h["energy_error"]).max() < 1e-9 * h["W_external"][-1]
+        assert ("D_bending" in h) == (points == "edges")
         peaks[points] = -h["R_load_y"].min()
     assert peaks["edges"] == pytest.approx(peaks["nodes"], rel=5e-3)
     group = s.built.cohesives[0]
     assert isinstance(group, FacetRP) and group.moment_dissipated > 0.0
+    assert h["D_bending"][-1] == pytest.approx(group.moment_dissipated, rel=1e-12)  # one unit thickness
+    assert 0.0 < h["D_bending"][-1] < 0.1 * h["D_dissipated"][-1]

@@ -263,6 +263,11 @@ class ElementGroup(ABC):
         thickness in 2D); None for a group without one."""
         return None
 
+    def bending_energy(self) -> float | None:
+        """The part of :meth:`dissipated_energy` that facet points' plastic bending took [J] (per unit
+        thickness in 2D); None for a group without bending."""
+        return None
+
 
 def restore_arrays(owner: object, saved: dict[str, np.ndarray], names: tuple[str, ...], what: str) -> None:
     """Copy the saved arrays ``names`` into ``owner``'s arrays of the same names, in place; ValueError

@@ -316,6 +316,10 @@ class _OnFacets:
             ke[:, :n_u, :n_u] += kt[:, None, None] * r[:, :, None] * r[:, None, :]
         return replace(ev, fe=fe, ke=ke, n_switched=ev.n_switched + switched)
 
+    def bending_energy(self) -> float | None:
+        """The plastic bending's work sum q . dg_p over the committed steps [J/m, J] (part of D_dissipated)."""
+        return self.moment_dissipated
+
     def begin_step(self) -> None:
         super().begin_step()  # type: ignore[misc]
         self._bend_trial[:] = self.bend_plastic

@@ -15,6 +15,8 @@
   over the steps, which the element's own dissipation should equal and, with its constant jump and
   averaged traction, does not: see README); ``D_viscous`` (only with a viscous regularisation,
   [cohesive] viscosity): the part of D_dissipated the regularisation added, not the law's;
+  ``D_bending`` (only with ``[cohesive] points = "edges"`` or ``"faces"``): the part of D_dissipated
+  the facet points' plastic bending took (its moment capped by the tension cap), not the law's;
 - the crack quantities of the discontinuities (mean plastic jump and strengths, counts);
 - ``n_fragments`` (a mesh with cohesive surfaces): the pieces the surfaces that lost their tensile
   strength have cut the body into (:mod:`rockfrac.output.fragments`; 1 while it is whole), and
@@ -151,8 +153,9 @@ class History:
         self.monitors = monitors
         group_cols = [f"{q}_{g}_{a}" for g in self.groups for q in ("u", "R") for a in AXES[: self.dim]]
         extra = [m for m in self.means if m not in CRACK]
-        self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "time"] + group_cols
+        self.reserved = BASE + ALIASES + COUNTS + CRACK + extra + ENERGY + ["D_viscous", "D_bending", "time"] + group_cols
         self.viscous = model.reduce_any(any(g.viscous_energy() is not None for g in model.groups))
+        self.bending = model.reduce_any(any(g.bending_energy() is not None for g in model.groups))
         self.surfaces = [g for g in model.groups if isinstance(g, (CohesiveEP, CohesiveRP))]
         n_if = mesh.place.n_interfaces if mesh.place is not None else mesh.interfaces.shape[0]
         self.counts_fragments = n_if > 0
@@ -167,7 +170,8 @@ class History:
         self.reserved.append("E_released")
         self.columns = (BASE + (ALIASES if axial_dofs is not None else []) + COUNTS + CRACK + extra + ["time"]
                         + group_cols + [c for m in monitors for c in m.columns] + ENERGY
-                        + (["D_viscous"] if self.viscous else []) + (["E_released"] if self.cuts else []))
+                        + (["D_viscous"] if self.viscous else []) + (["D_bending"] if self.bending else [])
+                        + (["E_released"] if self.cuts else []))
         self.n_w = model.n_dofs if self.cuts else self.n_u  # the dofs whose forces work (the enrichments' too)
         self._linear = self._functionals()
         self.e0 = self.elastic_energy(u0)
@@ -301,6 +305,9 @@ class History:
                    / self.thickness)
         if self.viscous:
             row["D_viscous"] = self.viscous_dissipated()
+        if self.bending:
+            row["D_bending"] = self.model.reduce_sum(
+                sum(e for g in self.model.groups if (e := g.bending_energy()) is not None)) / self.thickness
         if self.cuts:
             row["E_released"] = released
         return row

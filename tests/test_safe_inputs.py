@@ -439,6 +439,30 @@ def test_csv_quotes_fields_and_tells_nan_from_empty(tmp_path):
     assert back["name"][0] == "EP CSE, k = 1e8" and np.isnan(back["x"][0]) and np.isnan(back["y"][0])
 
 
+def test_a_resumed_csv_takes_the_columns_added_since(tmp_path):
+    """A run resumed by a rockfrac that writes a column more (history.csv's D_bending since 2026-12-02)
+    keeps its old rows under the new header, the new column empty there, and its digest is the file's;
+    a file with a column the run does not write is another run's: refused."""
+    from rockfrac.output.csvout import CsvWriter, read_csv, rows_digest
+
+    path = tmp_path / "h.csv"
+    old = CsvWriter(path, ["step", "x", "E"])
+    for k in (1, 2, 3):
+        old.write({"step": k, "x": 0.5 * k, "E": 10.0 * k})
+    old.close()
+    new = CsvWriter(path, ["step", "x", "D_bending", "E"], keep_steps=2)
+    new.write({"step": 3, "x": 7.0, "D_bending": 0.25, "E": 70.0})
+    new.close()
+    back = read_csv(path)
+    np.testing.assert_array_equal(back["step"], [1, 2, 3])
+    np.testing.assert_array_equal(back["x"], [0.5, 1.0, 7.0])
+    np.testing.assert_array_equal(back["E"], [10.0, 20.0, 70.0])
+    assert np.isnan(back["D_bending"][:2]).all() and back["D_bending"][2] == 0.25
+    assert rows_digest(path, 3) == new.digest()
+    with pytest.raises(ValueError, match=r"\['E'\] are not this run's"):
+        CsvWriter(path, ["step", "x", "D_bending"], keep_steps=2)
+
+
 def test_a_load_the_solve_cannot_follow_is_named(tmp_path, capsys):
     """A step that cannot converge down to min_step stops the run with the load key that drives it."""
     case = small_case(tmp_path, steps=1)

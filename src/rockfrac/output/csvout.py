@@ -75,6 +75,17 @@ def _kept_rows(path: Path, keep_steps: int) -> list[list[str]]:
     return kept
 
 
+def _widened(path: Path, rows: list[list[str]], columns: list[str]) -> list[list[str]]:
+    """The kept rows under the header ``columns``, a column the old header lacks empty; ValueError if the old
+    header has a column that ``columns`` has not (another run's file)."""
+    old = rows[0]
+    lost = [c for c in old if c not in columns]
+    if lost:
+        raise ValueError(f"{path}: its columns {lost} are not this run's: written by another case")
+    at = [old.index(c) if c in old else -1 for c in columns]
+    return [columns] + [[r[i] if 0 <= i < len(r) else "" for i in at] for r in rows[1:]]
+
+
 def rows_digest(path: str | Path, keep_steps: int) -> str:
     """SHA-256 of the header and the rows with step <= keep_steps, as :meth:`CsvWriter.digest`
     computes it while writing; ValueError if the file has no header with a step column."""
@@ -93,6 +104,8 @@ class CsvWriter:
         self.columns = columns
         self._hash = hashlib.sha256()
         rows = _kept_rows(Path(path), keep_steps) if keep_steps is not None and Path(path).exists() else [columns]
+        if rows[0] != columns:  # resumed by a rockfrac that writes more columns: the old rows get empty cells
+            rows = _widened(Path(path), rows, columns)
         self._fh = open(path, "w", newline="", encoding="utf-8")
         self._csv = csv.writer(self._fh)
         for r in rows:

@@ -26,10 +26,19 @@ def interrupted_then_resumed(case, tmp_path, at: int):
     return run_case(case, tmp_path / "cut", resume=True)
 
 
-@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "rp_viscous", "joint_3d", "nodal"])
+@pytest.mark.parametrize("name", ["rp_path", "ede", "ep_implex", "ep_viscous", "rp_viscous", "joint_3d", "nodal",
+                                  "beam_edges"])
 def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
     at = 70
-    if name == "joint_3d":  # a 3D EP surface (tetrahedra, wedge interfaces in the VTK series)
+    if name == "beam_edges":  # RP edge points whose bending is on its cap (its plastic part and force are kept)
+        from test_rock_tests import example
+
+        from rockfrac.mesh import rock_tests as rt
+
+        d = example("bending/notched_beam.toml", rt.notched_beam(tmp_path / "beam.msh", element_size=0.0025),
+                    **{"0__steps": 500})
+        d["cohesive"]["points"] = "edges"
+    elif name == "joint_3d":  # a 3D EP surface (tetrahedra, wedge interfaces in the VTK series)
         import tomllib
         from pathlib import Path
 
@@ -69,6 +78,9 @@ def test_resume_reproduces_the_uninterrupted_history(tmp_path, name):
                 np.testing.assert_array_equal(a[k], b[k])  # bit for bit
             else:
                 assert list(a[k]) == list(b[k])
+    if name == "beam_edges":
+        h = read_csv(tmp_path / "full" / "history.csv")
+        assert h["D_bending"][25 * (at // 25) - 1] > 0.0  # the bending had yielded by the checkpoint
     log = (tmp_path / "cut" / "run.log").read_text()
     assert f"resumed from the checkpoint at step {25 * (at // 25)}" in log
     files = sorted((tmp_path / "cut" / "vtk").glob("*.vtu"))

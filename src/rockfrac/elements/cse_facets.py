@@ -118,6 +118,8 @@ class _OnFacets:
     rotation_stiffness: float  # k of the bending [Pa/m]
     moment_cap: bool = True  # the bending's corner tractions capped by the tension cap (False: elastic)
     FD_STEP = 1e-7  # the differences' step for dC/d(jump, multiplier): this fraction of the law's strength
+    CAP_TOLERANCE = 1e-9  # a bending is capped where it exceeds C by this fraction of the law's strength (not by
+    # round-off: a separated point has C = 0, and an elastic bending of 1e-20 Pa there is no yield)
     torsion_stiffness: float  # k_t of the torsion [Pa/m] (3D)
     _cells: np.ndarray  # (n, 2 m): each point's cell
     _shape: FacetShape
@@ -275,7 +277,7 @@ class _OnFacets:
         capped = np.zeros(e.shape[0], dtype=bool)
         if self.moment_cap and e.size:
             cap = self._cap(self.trial)  # type: ignore[attr-defined]
-            capped = peak > cap
+            capped = peak > cap + self.CAP_TOLERANCE * self.law.scale  # type: ignore[attr-defined]
         ks = k * s_mat
         stiff = np.einsum("pai,paj->pij", c, np.einsum("pab,pbj->paj", ks, c))
         beta = np.ones(e.shape[0])
@@ -294,7 +296,7 @@ class _OnFacets:
             ke[i, :n_u, :] += np.einsum("pai,pa,pj->pij", c[i], dq_dc, self._cap_gradient(i, u, u_n))
         e_new = beta[:, None] * e
         q = k * np.einsum("pab,pb->pa", s_mat, e_new)
-        self._bend_trial = g - e_new
+        self._bend_trial = self.bend_plastic + (1.0 - beta)[:, None] * e  # the plastic part grows by what the cap removed
         self._force_trial = q
         switched = int(np.count_nonzero(capped != self.capped))
         self.capped = capped

@@ -16,7 +16,13 @@ whole (benchmarks/README.md, "Smoothed normals"). This probe compares, on the sm
 - ``mean+elastic-rotation``: the same with the moment elastic whatever the point's state (the edge
   points until sitting 61).
 
-Measured results: benchmarks/README.md, "Points per edge".
+``--specimen rocking``: a block rocking and sliding on one horizontal surface instead (the paper's
+specimen, 40 x 80 mm, with its crack turned horizontal at mid-height, on ``--edges`` n edges: n x 2n
+quads; the paper's law and bulk), pressed by 20 kPa on its top, then pushed sideways at its top, which
+may rise and tilt: the heel of the surface opens in tension while its toe is pressed, the case an
+edge's bending is for. R_top_x against the push, for each n.
+
+Measured results: benchmarks/README.md, "Points per edge" and "A block rocking on one surface".
 ``.venv/bin/python benchmarks/edge_points.py [--points nodal mean mean+rotation] [--forms ep rp]``
 (each run 40-200 s on one thread).
 """
@@ -35,6 +41,7 @@ import numpy as np
 import rockfrac.case.build_groups as build_groups
 from rockfrac.case.schema import parse_case
 from rockfrac.runner import run_case
+from rockfrac.studies import table1
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from fragmentation import grains_case  # noqa: E402
@@ -59,6 +66,7 @@ def elastic_moment_edge_groups(*args, **kwargs) -> list:
     return groups
 
 
+POINTS = {"nodal": "nodes", "corners": "corners"}  # [cohesive] points of each kind (the rest: edge points)
 VARIANTS = {"mean": hinged_edge_groups, "mean+elastic-rotation": elastic_moment_edge_groups}
 
 
@@ -86,10 +94,58 @@ def small_grains(form: str, points: str, steps: int, displacement: float, k: flo
     return d
 
 
+def rocking_block(form: str, points: str, steps: int, displacement: float, k: float, n: int) -> dict:
+    """The paper's specimen (40 x 80 mm, n x 2n quads) with its crack horizontal at mid-height and the
+    paper's law on it (EP: kn = kt = k; RP: augmentation k), held at its base, pressed by 20 kPa on its
+    top (2 steps), then its top pushed sideways by ``displacement`` in ``steps`` (free to rise and tilt)."""
+    coh = dict(table1.CSE_LAW, form=form, points=points)
+    coh.update({"kn": k, "kt": k} if form == "ep" else {"augmentation": k})
+    return {
+        "title": "a block rocking on one surface",
+        "mesh": {"kind": "specimen", "width": 0.04, "height": 0.08, "crack": True, "crack_angle": 0.0,
+                 "nx": n, "ny": 2 * n},
+        "bulk": dict(table1.BULK),
+        "cohesive": coh,
+        "stages": [
+            {"name": "press", "steps": 2, "displacement": {"bottom": {"x": 0.0, "y": 0.0}, "top": {"x": 0.0}},
+             "pressure": {"top": table1.CONFINEMENT}},
+            {"name": "push", "steps": steps, "displacement": {"top": {"x": displacement}}},
+        ],
+        "output": {"vtk": False, "picture": False, "points": False},
+    }
+
+
+def rocking(args: argparse.Namespace) -> None:
+    """The rocking block's table: peak and R_top_x at fractions of the push, for each n, points and form."""
+    print("| edges | points | form | steps | wall [s] | ended | peak [N/m] | "
+          + " | ".join(f"R_top_x at {f}" for f in FRACTIONS) + " | D [J/m] |")
+    print("|---" * (8 + len(FRACTIONS)) + "|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for n, kind in ((n, kind) for n in args.edges for kind in args.points):
+            build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
+            for form in args.forms:
+                out = Path(tmp) / f"{kind}_{form}_{n}"
+                case = rocking_block(form, POINTS.get(kind, "edges"), args.steps, args.displacement,
+                                     args.k, n)
+                t0 = time.perf_counter()
+                s = run_case(parse_case(case, "<edge_points rocking>"), out)
+                wall = time.perf_counter() - t0
+                rows = [r for r in csv.DictReader(open(out / "history.csv")) if r["stage"] == "push"]
+                lam = np.array([float(r["load_factor"]) for r in rows])
+                force = np.array([float(r["R_top_x"]) for r in rows])
+                at = []
+                for f in FRACTIONS:
+                    i = int(np.argmin(np.abs(lam - f)))
+                    at.append(f"{force[i]:.1f}" if abs(lam[i] - f) < 0.02 else "-")
+                ended = "stage done" if s.result.completed else f"stopped at {lam[-1]:.3f}"
+                print(f"| {n} | {kind} | {form.upper()} | {s.result.steps} | {wall:.0f} | {ended} | {force.max():.1f} | "
+                      + " | ".join(at) + f" | {float(rows[-1]['D_dissipated']):.4f} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", nargs="+", default=["nodal", "mean", "mean+rotation"],
-                    choices=["nodal", "mean", "mean+rotation", "mean+elastic-rotation"])
+                    choices=["nodal", "mean", "mean+rotation", "mean+elastic-rotation", "corners"])
     ap.add_argument("--forms", nargs="+", default=["ep", "rp"], choices=["ep", "rp"])
     ap.add_argument("--steps", type=int, default=50)
     ap.add_argument("--displacement", type=float, default=4e-4, help="the top's shortening [m]")
@@ -97,7 +153,13 @@ def main() -> None:
     ap.add_argument("--viscosity", type=float, default=2.5e-5)
     ap.add_argument("--size", type=float, nargs="+", default=[0.002],
                     help="element sizes [m] (several: a refinement study, each size's runs in turn)")
+    ap.add_argument("--specimen", choices=["grains", "rocking"], default="grains")
+    ap.add_argument("--edges", type=int, nargs="+", default=[4, 8, 16, 32],
+                    help="rocking: the surface's edges n (n x 2n quads)")
     args = ap.parse_args()
+    if args.specimen == "rocking":
+        rocking(args)
+        return
     print("| size [mm] | points | form | interface points | steps | wall [s] | ended | "
           + " | ".join(f"R_top_y at {f}" for f in FRACTIONS) + " | D [J/m] |")
     print("|---" * (8 + len(FRACTIONS)) + "|")
@@ -106,7 +168,7 @@ def main() -> None:
             build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
             for form in args.forms:
                 out = Path(tmp) / f"{kind}_{form}_{size:g}"
-                case = small_grains(form, "nodes" if kind == "nodal" else "edges", args.steps, args.displacement,
+                case = small_grains(form, POINTS.get(kind, "edges"), args.steps, args.displacement,
                                     args.k, args.viscosity, Path(tmp), size)
                 t0 = time.perf_counter()
                 s = run_case(parse_case(case, "<edge_points>"), out)

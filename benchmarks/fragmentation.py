@@ -18,7 +18,7 @@ case's kn over R or K, so that eta k, the viscous stress per jump rate, stays th
 peak load, the dissipated energy (the work of the forces, and the law's own account), the pieces the
 body is in at the end and the length of the surfaces that lost their tensile strength (history.csv's
 n_fragments and separated), the platen's displacement at the end against at the peak (below 1: the
-run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked); ``--normals smoothed``: every set's normals smoothed at its vertices (likewise); ``--points edges``: every set's points on its edges (likewise). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
+run followed a snap-back), and how the run ended. ``--elimination``: the runs with ``[solver] elimination = true`` (their folders and keys marked); ``--normals smoothed``: every set's normals smoothed at its vertices (likewise); ``--points edges`` or ``corners``: every set's points on its edges or at their corners (likewise). Writes ``results/fragmentation.json`` and the ``fragmentation-table`` of README.md.
 A run stopped by SIGINT/SIGTERM gets no row (and the runs after it do not start; with no
 row added, the table and its json are left as they were). Long runs may span sessions: ``--checkpoint-every N``
 saves a checkpoint every N steps and ``--resume`` continues each run from its own (the result is that
@@ -146,6 +146,7 @@ def run_key(rec: dict) -> str:
             + (f" r {aug:g}" if aug else "") + (f" kn {pen:g}" if pen else "") + (" elim" if rec.get("elimination") else "")
             + (" smoothed" if rec.get("normals") == "smoothed" else "")
             + (" edges" if rec.get("points_per") == "edges" else "")
+            + (" corners" if rec.get("points_per") == "corners" else "")
             + (" elastic-moment" if rec.get("moment") == "elastic" else ""))
 
 
@@ -230,12 +231,12 @@ def variant_case(base: dict, args: argparse.Namespace, variant: str, steps: int,
     if args.normals == "smoothed":
         for coh in sections:
             coh["normals"] = "smoothed"
-    if args.points == "edges":
+    if args.points != "nodes":
         for coh in sections:
-            coh["points"] = "edges"
+            coh["points"] = args.points
     name = (f"fragment_{args.specimen}_{variant.replace(' ', '_')}_{steps}" + (f"_r{aug:g}" if aug else "")
             + (f"_kn{pen:g}" if pen else "") + ("_elim" if args.elimination else "")
-            + ("_smoothed" if args.normals == "smoothed" else "") + ("_edges" if args.points == "edges" else ""))
+            + ("_smoothed" if args.normals == "smoothed" else "") + ("" if args.points == "nodes" else f"_{args.points}"))
     return d, name, eta
 
 
@@ -258,9 +259,10 @@ def main() -> None:
     ap.add_argument("--normals", choices=("pairs", "smoothed"), default="pairs",
                     help="[cohesive] normals of every set (smoothed: averaged at a polygonal surface's vertices; the "
                          "run folder's name ends in _smoothed)")
-    ap.add_argument("--points", choices=("nodes", "edges"), default="nodes",
-                    help="[cohesive] points of every set (edges: one per edge, its mean jump and a moment on its "
-                         "rotation; the run folder's name ends in _edges)")
+    ap.add_argument("--points", choices=("nodes", "corners", "edges"), default="nodes",
+                    help="[cohesive] points of every set (corners: at each edge's ends, RP with one multiplier per "
+                         "edge; edges: one per edge, its mean jump and a moment on its rotation; the run folder's "
+                         "name ends in _corners or _edges)")
     ap.add_argument("--elimination", action="store_true",
                     help="[solver] elimination = true: a stalled Newton iteration solves its few stalled unknowns "
                          "alone (the run folder's name ends in _elim)")
@@ -370,6 +372,7 @@ def main() -> None:
         label += ", elimination" if rec.get("elimination") else ""
         label += ", smoothed normals" if rec.get("normals") == "smoothed" else ""
         label += ", points on edges" if rec.get("points_per") == "edges" else ""
+        label += ", points at edge corners" if rec.get("points_per") == "corners" else ""
         label += " (elastic moment)" if rec.get("moment") == "elastic" else ""
         labels.append(f"{label}, {rec['nominal_steps']} steps over {1e3 * rec.get('displacement_m', 1e-4):g} mm")
         rows.append([label,

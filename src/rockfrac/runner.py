@@ -77,7 +77,7 @@ def case_warnings(built: Built) -> list[str]:
         loops = list(looped_pairs_by_set([g.points.minus for g in built.cohesives],
                                          [g.points.plus for g in built.cohesives], built.mesh.n_nodes))
     for j, (coh, group) in enumerate(zip(built.case.cohesive_sets, built.cohesives)):
-        if isinstance(group, CohesiveRP) and group.per_facet:  # a facet point closes no ring of pairs
+        if isinstance(group, CohesiveRP) and not group.rings:  # a cell's multipliers close no ring of pairs
             continue
         if isinstance(group, CohesiveRP):
             mask = loops[j] if loops is not None else None

@@ -12,6 +12,7 @@ from rockfrac.case.cohesive_section import CohesiveCommon, CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
+from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points
 from rockfrac.elements.cse_facets import FacetEP, FacetRP, facet_points
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.cse_nested import CohesiveRPNested
@@ -101,6 +102,8 @@ def set_points(section: CohesiveCommon, mesh: Mesh, cells: np.ndarray, root: np.
     """The integration points of a cohesive set's interface cells ``cells`` (rows of mesh.interfaces):
     nodal, with the set's normals smoothed at the mesh's nodes if it asks for it (``root``:
     :func:`tied_nodes` of the mesh, if made already), or one per cell (points = 'edges', 'faces')."""
+    if section.points == "corners":
+        return corner_points(mesh.nodes, mesh.interfaces[cells])
     if section.points != "nodes":
         return facet_points(mesh.nodes, mesh.interfaces[cells])[0]
     points = (interface_points if mesh.dim == 2 else interface_points_3d)(mesh.nodes, mesh.interfaces[cells])
@@ -131,6 +134,8 @@ def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>"
             law = Law3D(planar)
         except ValueError as err:
             raise CaseError(f"{path}: {key}: {err}") from None
+    if section.points == "corners":
+        return corner_groups(section, points, mesh, law, name, path, fallback)
     if section.points != "nodes":
         return facet_groups(section, points, mesh, law, name, path, fallback)
     if section.form is CohesiveForm.ep:
@@ -159,6 +164,17 @@ def facet_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, p
                         index=points.index)]
     return [FacetRP(points.segments, mesh.nodes, law, section.augmentation, name=name,
                     viscosity=section.viscosity or 0.0, index=points.index)]
+
+
+def corner_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, path: str, fallback: str) -> list:
+    """The CSE group of a set with points = 'corners' (:func:`set_points`: the corners of the set's cells)."""
+    if fallback != "none":
+        raise CaseError(f"{path}: [cohesive] ({name}): points = 'corners' is integrated implicitly: [solver] "
+                        f"fallback = {fallback!r} is for points = 'nodes'")
+    if section.form is CohesiveForm.ep:
+        return [CornerEP(points.segments, mesh.nodes, law, name=name, viscosity=section.viscosity or 0.0)]
+    return [CornerRP(points.segments, mesh.nodes, law, section.augmentation, name=name,
+                     viscosity=section.viscosity or 0.0)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

@@ -82,9 +82,13 @@ class CohesiveCommon(_Section):
         "polygonal surface's vertex, each line of edges through a crossing; with surfaces on every edge "
         "the bulk's pairs tie a vertex's copies on each side, and rigid-plastic pairs there slide only "
         "along a frame they share)")
-    points: Literal["nodes", "edges", "faces"] = Field(
+    points: Literal["nodes", "corners", "edges", "faces"] = Field(
         "nodes", description="where the integration points are: 'nodes' (one per node pair of the interface "
-        "cells, the paper's nodal integration), 'edges' (2D) or 'faces' (3D) (one per "
+        "cells, the paper's nodal integration), 'corners' (the nodal rule cell by cell: a point at each corner "
+        "of each interface cell, with the cell's normal and its own state; RP: one multiplier per cell, its "
+        "mean jump rigid and each corner's deviation elastic with the augmentation as stiffness, so that with "
+        "surfaces on every edge or face no ring of pairs round a node holds them shut; rockfrac.elements."
+        "cse_corners), 'edges' (2D) or 'faces' (3D) (one per "
         "interface cell, its mean jump, and a moment k/2 (g - g_p)^T S (g - g_p) on the normal jumps g of its "
         "node pairs, the penalty's energy of their zero-mean part, k L (g_1 - g_0 - rho_p)^2 / 24 on an edge, "
         "its corner tractions capped at the point's tensile strength; k = kn or "

@@ -25,6 +25,7 @@ from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.schema import Case
 from rockfrac.elements.interface_points import InterfacePoints
+from rockfrac.errors import CaseError
 from rockfrac.mesh.interfaces import at_junctions, looped_pairs_by_set, tied_nodes
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
@@ -91,7 +92,10 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
     root = tied_nodes(mesh) if rigid else None
     sets = []
-    for section, cells in zip(case.cohesive_sets, set_cells):
+    for j, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
+        if section.points == "corners":
+            raise CaseError(f"{path}: [cohesive] (cohesive {j + 1}): points = 'corners' runs on one process, not yet "
+                            "on MPI ranks: run it serially, or take points = 'nodes', 'edges' or 'faces'")
         points = set_points(section, mesh, cells, root)
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
         nodal_rp = section.form is CohesiveForm.rp and section.points == "nodes"  # facet points: no junction term

@@ -31,7 +31,7 @@ tractions' deviation, the moment L Delta / 6 conjugate to g_1 - g_0). So an edge
 one end rocks open like a pair of nodal points, and an edge in compression keeps its moment up to
 the pressure. The tangent is consistent: dC/d(jump, multiplier) by forward differences of the
 law's own update at the capped points only. The plastic bending dissipates q . dg_p (kept in
-``dissipated``, reported apart as ``moment_dissipated``); the torsion stays elastic. The law, its return, the viscosity and the RP multipliers are the nodal points' own: each
+``dissipated``, reported apart in history.csv's ``D_bending``); the torsion stays elastic. The law, its return, the viscosity and the RP multipliers are the nodal points' own: each
 point's rows (minus, plus[, multiplier]) are mapped onto the cell's nodes, each node taking its share
 w_a / A.
 """
@@ -126,6 +126,7 @@ class _OnFacets:
     _source: np.ndarray  # the point's row (minus, plus[, multiplier]) of each of the cell's rows
     _share: np.ndarray  # (n, rows): and the share it takes (w_a / A for a node, all of a multiplier's)
     _normal_rows: np.ndarray  # (n, m, 2 m dim): g = normal_rows . u over the cell's nodes
+    _mean: np.ndarray  # (n, dim, 2 m dim): the mean jump's global components over the cell's displacement dofs
     _torsion_rows: np.ndarray | None  # (n, 2 m dim): b . J = torsion_rows . u (3D)
 
     def _on_facets(self, cells: np.ndarray, shape: FacetShape, multipliers: bool) -> None:
@@ -144,9 +145,14 @@ class _OnFacets:
             rows[:, a, 0, a] = -normal
             rows[:, a, 1, a] = normal
         self._normal_rows = rows.reshape(n, m, 2 * m * d)
+        mean = np.zeros((n, d, 2, m, d))
+        for i in range(d):
+            mean[:, i, 0, :, i] = -shape.share
+            mean[:, i, 1, :, i] = shape.share
+        self._mean = mean.reshape(n, d, 2 * m * d)
         self._torsion_rows = None
         self.bend_plastic = np.zeros((n, m))  # committed plastic normal jumps of the bending g_p [m]
-        self.bend_force = np.zeros((n, m))  # committed bending forces q = k S (g - g_p) [N/m, N/m^... per m]
+        self.bend_force = np.zeros((n, m))  # committed bending forces q = k S (g - g_p) [N/m per m in 2D, N in 3D]
         self.moment_dissipated = 0.0  # sum of q . d g_p over the committed steps [J/m in 2D, J in 3D]
         self._bend_trial = np.zeros((n, m))
         self._force_trial = np.zeros((n, m))
@@ -190,15 +196,6 @@ class _OnFacets:
     def elastic_energy(self, u: np.ndarray) -> float:
         """The law's stored energy at the points and the moments' [J/m, J]."""
         return super().elastic_energy(u) + self.moment_energy(u)  # type: ignore[misc]
-
-    def _mean_rows(self) -> np.ndarray:
-        """(n, dim, 2 m dim): the mean jump's global components over the cell's displacement dofs."""
-        d, (n, m) = self.dim, self._shape.share.shape
-        rows = np.zeros((n, d, 2, m, d))
-        for i in range(d):
-            rows[:, i, 0, :, i] = -self._shape.share
-            rows[:, i, 1, :, i] = self._shape.share
-        return rows.reshape(n, d, 2 * m * d)
 
     def _cap(self, state: np.ndarray) -> np.ndarray:
         """The bending's cap C = max(0, chi - T_n) [Pa] at states (k, n_state)."""
@@ -247,11 +244,11 @@ class _OnFacets:
         d = self.dim
         djump = (self.jumps(u) - self.jumps(u_n))[idx]
         n_u = self._normal_rows.shape[2]
-        mean = self._mean_rows()[idx]  # (k, dim, n_u): the mean jump's global components
+        mean = self._mean[idx]  # (k, dim, n_u): the mean jump's global components
         grad = np.zeros((idx.size, n_u + (d if self.rigid else 0)))
         if self.rigid:
             lam = u[self.lam_dofs[idx]]  # type: ignore[attr-defined]
-            by_jump, by_lam = self._differenced(idx, lambda st: self._cap(st), djump, lam, True)
+            by_jump, by_lam = self._differenced(idx, self._cap, djump, lam, True)
             assert by_lam is not None
             grad[:, n_u:] = by_lam
         else:
@@ -403,6 +400,8 @@ class FacetEP(_OnFacets, CohesiveEP):
 class FacetRP(_OnFacets, CohesiveRP):
     """RP surfaces with one point per interface cell (the moments' k: the augmentation r). No junction
     term: a facet point closes no ring of pairs round a node."""
+
+    rings = False
 
     def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, augmentation: float, *,
                  name: str = "cohesive", viscosity: float = 0.0, index: np.ndarray | None = None):

@@ -396,6 +396,7 @@ class CohesiveRP(_CohesiveGroup):
     PIN_AFTER_FLIPS = 2  # a point that switched this often in a step is held constrained (active set)
     PIN_TOLERANCE = 1e-9  # a held point is let go where F > PIN_TOLERANCE x the law's strength scale
     rigid = True
+    rings = True  # its points' multipliers may close rings round a split node (per-cell multipliers do not)
 
     def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, augmentation: float,
                  junction: np.ndarray | None = None, *, name: str = "cohesive", viscosity: float = 0.0):

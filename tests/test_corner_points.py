@@ -162,3 +162,22 @@ def test_corner_points_refuse_what_they_do_not_do(tmp_path):
         build(parse_case(data))
     with pytest.raises(CaseError, match="points = 'corners' runs on one process"):
         cut_shares(parse_case(dict(EVERY_EDGE, cohesive=RP_CORNERS)), "<case>", 2, lambda mesh: None)
+
+
+def test_rp_corner_points_carry_the_disc_to_its_splitting_load(tmp_path):
+    """The coarse Brazilian disc with RP corner points on every internal edge (nodal points' in
+    tests/test_rock_tests.py): the peak is the Brazilian estimate to 2 % (0.991 measured; nodal 0.993),
+    with no ring round a node to hold the first yielded points shut."""
+    from test_rock_tests import brazilian_estimate, example
+
+    data = example("brazilian/everywhere.toml", **{"0__steps": 50})
+    data["solver"] = {"max_iterations": 12}
+    coh = data["cohesive"]
+    coh["form"], coh["augmentation"], coh["points"] = "rp", coh.pop("kn"), "corners"
+    coh.pop("kt")
+    s = run_case(parse_case(data, "disc"), tmp_path / "disc")
+    h = read_csv(tmp_path / "disc" / "history.csv")
+    assert isinstance(s.built.cohesives[0], CornerRP)
+    assert "points lie on loops" not in (tmp_path / "disc" / "run.log").read_text()
+    assert -h["R_load_top_y"].min() == pytest.approx(brazilian_estimate(8e6), rel=0.02)
+    assert h["n_plastic"].max() >= 10 and s.result.steps > 30  # edges yielded along the loaded diameter

@@ -115,31 +115,43 @@ def rocking_block(form: str, points: str, steps: int, displacement: float, k: fl
     }
 
 
+def each_run(tmp: str, sizes: list, args: argparse.Namespace, make):
+    """Run make(form, points, size) for each size, kind of points and form in turn: yields (size, kind,
+    form, summary, wall [s], the history's rows of the last stage, their load factors, how it ended)."""
+    for size, kind in ((h, kind) for h in sizes for kind in args.points):
+        build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
+        for form in args.forms:
+            out = Path(tmp) / f"{kind}_{form}_{size:g}"
+            t0 = time.perf_counter()
+            s = run_case(parse_case(make(form, POINTS.get(kind, "edges"), size), "<edge_points>"), out)
+            wall = time.perf_counter() - t0
+            rows = list(csv.DictReader(open(out / "history.csv")))
+            rows = [r for r in rows if r["stage"] == rows[-1]["stage"]]
+            lam = np.array([float(r["load_factor"]) for r in rows])
+            ended = "stage done" if s.result.completed else f"stopped at {lam[-1]:.3f}"
+            yield size, kind, form, s, wall, rows, lam, ended
+
+
+def at_fractions(lam: np.ndarray, values: np.ndarray, fmt: str) -> list[str]:
+    """values at the load factors nearest FRACTIONS (within 0.02, else '-')."""
+    idx = [int(np.argmin(np.abs(lam - f))) for f in FRACTIONS]
+    return [format(values[i], fmt) if abs(lam[i] - f) < 0.02 else "-" for i, f in zip(idx, FRACTIONS)]
+
+
 def rocking(args: argparse.Namespace) -> None:
     """The rocking block's table: peak and R_top_x at fractions of the push, for each n, points and form."""
     print("| edges | points | form | steps | wall [s] | ended | peak [N/m] | "
           + " | ".join(f"R_top_x at {f}" for f in FRACTIONS) + " | D [J/m] |")
     print("|---" * (8 + len(FRACTIONS)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
-        for n, kind in ((n, kind) for n in args.edges for kind in args.points):
-            build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
-            for form in args.forms:
-                out = Path(tmp) / f"{kind}_{form}_{n}"
-                case = rocking_block(form, POINTS.get(kind, "edges"), args.steps, args.displacement,
-                                     args.k, n)
-                t0 = time.perf_counter()
-                s = run_case(parse_case(case, "<edge_points rocking>"), out)
-                wall = time.perf_counter() - t0
-                rows = [r for r in csv.DictReader(open(out / "history.csv")) if r["stage"] == "push"]
-                lam = np.array([float(r["load_factor"]) for r in rows])
-                force = np.array([float(r["R_top_x"]) for r in rows])
-                at = []
-                for f in FRACTIONS:
-                    i = int(np.argmin(np.abs(lam - f)))
-                    at.append(f"{force[i]:.1f}" if abs(lam[i] - f) < 0.02 else "-")
-                ended = "stage done" if s.result.completed else f"stopped at {lam[-1]:.3f}"
-                print(f"| {n} | {kind} | {form.upper()} | {s.result.steps} | {wall:.0f} | {ended} | {force.max():.1f} | "
-                      + " | ".join(at) + f" | {float(rows[-1]['D_dissipated']):.4f} |", flush=True)
+        def make(form: str, points: str, n: int) -> dict:
+            return rocking_block(form, points, args.steps, args.displacement, args.k, n)
+
+        for n, kind, form, s, wall, rows, lam, ended in each_run(tmp, args.edges, args, make):
+            force = np.array([float(r["R_top_x"]) for r in rows])
+            print(f"| {n} | {kind} | {form.upper()} | {s.result.steps} | {wall:.0f} | {ended} | {force.max():.1f} | "
+                  + " | ".join(at_fractions(lam, force, ".1f")) + f" | {float(rows[-1]['D_dissipated']):.4f} |",
+                  flush=True)
 
 
 def main() -> None:
@@ -164,26 +176,15 @@ def main() -> None:
           + " | ".join(f"R_top_y at {f}" for f in FRACTIONS) + " | D [J/m] |")
     print("|---" * (8 + len(FRACTIONS)) + "|")
     with tempfile.TemporaryDirectory() as tmp:
-        for size, kind in ((h, kind) for h in args.size for kind in args.points):
-            build_groups.facet_groups = VARIANTS.get(kind, EDGE_GROUPS)
-            for form in args.forms:
-                out = Path(tmp) / f"{kind}_{form}_{size:g}"
-                case = small_grains(form, POINTS.get(kind, "edges"), args.steps, args.displacement,
-                                    args.k, args.viscosity, Path(tmp), size)
-                t0 = time.perf_counter()
-                s = run_case(parse_case(case, "<edge_points>"), out)
-                wall = time.perf_counter() - t0
-                rows = list(csv.DictReader(open(out / "history.csv")))
-                lam = np.array([float(r["load_factor"]) for r in rows])
-                at = []
-                for f in FRACTIONS:
-                    i = int(np.argmin(np.abs(lam - f)))
-                    at.append(f"{-float(rows[i]['R_top_y']):.0f}" if abs(lam[i] - f) < 0.02 else "-")
-                ended = "stage done" if s.result.completed else f"stopped at {lam[-1]:.3f}"
-                points = sum(g.points.n for g in s.built.cohesives)
-                print(f"| {1e3 * size:g} | {kind} | {form.upper()} | {points} | {s.result.steps} | {wall:.0f} | {ended} | "
-                      + " | ".join(at)
-                      + f" | {float(rows[-1]['D_dissipated']):.4f} |", flush=True)
+        def make(form: str, points: str, size: float) -> dict:
+            return small_grains(form, points, args.steps, args.displacement, args.k, args.viscosity, Path(tmp), size)
+
+        for size, kind, form, s, wall, rows, lam, ended in each_run(tmp, args.size, args, make):
+            load = np.array([-float(r["R_top_y"]) for r in rows])
+            points = sum(g.points.n for g in s.built.cohesives)
+            print(f"| {1e3 * size:g} | {kind} | {form.upper()} | {points} | {s.result.steps} | {wall:.0f} | {ended} | "
+                  + " | ".join(at_fractions(lam, load, ".0f")) + f" | {float(rows[-1]['D_dissipated']):.4f} |",
+                  flush=True)
 
 
 if __name__ == "__main__":

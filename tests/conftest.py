@@ -67,6 +67,22 @@ def check_tied_every_edge(unsplit: Path, tied: Path, rtol: float, jump: float) -
     assert np.abs(p["T_t"][last]).max() < 1e-6 * 2e4
 
 
+def check_uniform_tractions_3d(points_csv: Path, sigma: np.ndarray, scale: float) -> np.ndarray:
+    """RP surfaces of a 3D patch test held shut under the uniform stress ``sigma`` [Pa]: at the last step
+    each point's T_n and shear magnitude are sigma . n's to 1e-9 of ``scale``, and no jump; returns the
+    points' shear magnitudes [Pa]."""
+    p = read_csv(points_csv)
+    last = p["step"] == p["step"].max()
+    n = np.stack([p["n_x"], p["n_y"], p["n_z"]], axis=1)[last]
+    t = n @ sigma
+    t_n = np.einsum("pi,pi->p", t, n)
+    assert np.abs(p["T_n"][last] - t_n).max() <= 1e-9 * scale
+    shear = np.linalg.norm(t - t_n[:, None] * n, axis=1)
+    assert np.abs(np.hypot(p["T_t1"][last], p["T_t2"][last]) - shear).max() <= 1e-9 * scale
+    assert np.abs(p["jump_n"]).max() < 1e-15 and np.abs(p["jump_t1"]).max() < 1e-15
+    return shear
+
+
 def check_cohesive_tangent(model, group, seed: int, step: float) -> np.ndarray:
     """The model's tangent against central differences of its internal forces (40 random columns, steps
     of ``step`` times the scale) at a random state of jumps of 3e-9 m (and RP multipliers of 2e4 Pa)

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import EVERY_EDGE, check_cohesive_tangent, check_tied_every_edge
+from conftest import EVERY_EDGE, check_cohesive_tangent, check_tied_every_edge, check_uniform_tractions_3d
 
 from rockfrac.api import make_case, run
 from rockfrac.case.build import build
@@ -71,15 +71,7 @@ def test_rp_corners_on_every_face_held_shut_give_the_unsplit_solution(box, tmp_p
     rep = tied_nodes(split.built.mesh)
     u, u0 = split.displacement(), plain.displacement()
     assert np.abs(u - u0[rep]).max() <= 1e-10 * np.abs(u0).max()
-    p = read_csv(tmp_path / "split" / "points.csv")
-    last = p["step"] == p["step"].max()
-    n = np.stack([p["n_x"], p["n_y"], p["n_z"]], axis=1)[last]
-    t = n @ sigma
-    t_n = np.einsum("pi,pi->p", t, n)
-    assert np.abs(p["T_n"][last] - t_n).max() <= 1e-9 * 2e6
-    shear = np.linalg.norm(t - t_n[:, None] * n, axis=1)
-    assert np.abs(np.hypot(p["T_t1"][last], p["T_t2"][last]) - shear).max() <= 1e-9 * 2e6
-    assert np.abs(p["jump_n"]).max() < 1e-15 and np.abs(p["jump_t1"]).max() < 1e-15
+    check_uniform_tractions_3d(tmp_path / "split" / "points.csv", sigma, 2e6)
 
 
 @pytest.mark.parametrize("cohesive", [EP_CORNERS, dict(RP_CORNERS, augmentation=1e13)], ids=["ep", "rp"])
@@ -168,14 +160,9 @@ def test_rp_corner_points_carry_the_disc_to_its_splitting_load(tmp_path):
     """The coarse Brazilian disc with RP corner points on every internal edge (nodal points' in
     tests/test_rock_tests.py): the peak is the Brazilian estimate to 2 % (0.991 measured; nodal 0.993),
     with no ring round a node to hold the first yielded points shut."""
-    from test_rock_tests import brazilian_estimate, example
+    from test_rock_tests import brazilian_estimate, rp_everywhere_disc
 
-    data = example("brazilian/everywhere.toml", **{"0__steps": 50})
-    data["solver"] = {"max_iterations": 12}
-    coh = data["cohesive"]
-    coh["form"], coh["augmentation"], coh["points"] = "rp", coh.pop("kn"), "corners"
-    coh.pop("kt")
-    s = run_case(parse_case(data, "disc"), tmp_path / "disc")
+    s = run_case(parse_case(rp_everywhere_disc("corners"), "disc"), tmp_path / "disc")
     h = read_csv(tmp_path / "disc" / "history.csv")
     assert isinstance(s.built.cohesives[0], CornerRP)
     assert "points lie on loops" not in (tmp_path / "disc" / "run.log").read_text()

@@ -273,14 +273,9 @@ def test_rp_edge_points_carry_the_disc_to_its_splitting_load(tmp_path):
     the nodal points'): the peak is the Brazilian estimate to 2 % (0.990 measured; nodal 0.993), with
     no ring round a node to hold the first yielded points shut."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from test_rock_tests import brazilian_estimate, example
+    from test_rock_tests import brazilian_estimate, rp_everywhere_disc
 
-    data = example("brazilian/everywhere.toml", **{"0__steps": 50})
-    data["solver"] = {"max_iterations": 12}
-    coh = data["cohesive"]
-    coh["form"], coh["augmentation"], coh["points"] = "rp", coh.pop("kn"), "edges"
-    coh.pop("kt")
-    s = run_case(parse_case(data, "disc"), tmp_path / "disc")
+    s = run_case(parse_case(rp_everywhere_disc("edges"), "disc"), tmp_path / "disc")
     h = read_csv(tmp_path / "disc" / "history.csv")
     assert "points lie on loops" not in (tmp_path / "disc" / "run.log").read_text()
     assert -h["R_load_top_y"].min() == pytest.approx(brazilian_estimate(8e6), rel=0.02)

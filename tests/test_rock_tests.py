@@ -145,6 +145,17 @@ def test_notched_beam_dissipates_gc_times_the_ligament(tmp_path):
     assert gaps[1] < 0.02 and gaps[1] < gaps[0]
 
 
+def rp_everywhere_disc(points: str) -> dict:
+    """The coarse disc of brazilian/everywhere.toml in 50 steps with RP surfaces (r = its kn) on every edge,
+    their points ``points`` ('edges' or 'corners'), at most 12 Newton iterations a step."""
+    data = example("brazilian/everywhere.toml", **{"0__steps": 50})
+    data["solver"] = {"max_iterations": 12}
+    coh = data["cohesive"]
+    coh["form"], coh["augmentation"], coh["points"] = "rp", coh.pop("kn"), points
+    coh.pop("kt")
+    return data
+
+
 def brazilian_estimate(sigma_t: float) -> float:
     a, radius = math.radians(5.0), 0.025
     return math.pi * a * radius * sigma_t / (math.sin(2 * a) - a)

@@ -172,9 +172,8 @@ def corner_groups(section, points: InterfacePoints, mesh: Mesh, law, name: str, 
         raise CaseError(f"{path}: [cohesive] ({name}): points = 'corners' is integrated implicitly: [solver] "
                         f"fallback = {fallback!r} is for points = 'nodes'")
     if section.form is CohesiveForm.ep:
-        return [CornerEP(points.segments, mesh.nodes, law, name=name, viscosity=section.viscosity or 0.0)]
-    return [CornerRP(points.segments, mesh.nodes, law, section.augmentation, name=name,
-                     viscosity=section.viscosity or 0.0)]
+        return [CornerEP(points, law, name=name, viscosity=section.viscosity or 0.0)]
+    return [CornerRP(points, law, section.augmentation, name=name, viscosity=section.viscosity or 0.0)]
 
 
 def refuse_nodal(case: Case, mesh: Mesh, path: str) -> None:

@@ -56,12 +56,12 @@ def held_pairs_separated(points: InterfacePoints, hit: np.ndarray) -> np.ndarray
     return np.stack([gone // n, gone % n], axis=1) if gone.size else np.zeros((0, 2), dtype=np.int64)
 
 
-class CornerEP(CohesiveEP):
-    """EP surfaces with their points at each interface cell's corners (the nodal rule cell by cell)."""
+class _AtCorners:
+    """What corner points change of nodal points: a pair is separated only where all its corner points are."""
 
-    def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, *, name: str = "cohesive",
-                 viscosity: float = 0.0):
-        super().__init__(corner_points(nodes, cells), law, name=name, viscosity=viscosity)
+    law: TractionLaw | Law3D
+    state: np.ndarray
+    points: InterfacePoints
 
     def separated(self, fraction: float) -> tuple[np.ndarray, float]:
         """The pairs all of whose corner points have lost their tensile strength, and the separated size
@@ -70,18 +70,23 @@ class CornerEP(CohesiveEP):
         return held_pairs_separated(self.points, hit), float(self.points.weight[hit].sum())
 
 
-class CornerRP(CohesiveRP):
+class CornerEP(_AtCorners, CohesiveEP):
+    """EP surfaces with their points at each interface cell's corners (:func:`corner_points`: the nodal
+    rule cell by cell)."""
+
+
+class CornerRP(_AtCorners, CohesiveRP):
     """RP surfaces with their points at each interface cell's corners and one multiplier per cell (the
     module's docstring); no junction term: a cell's constraints close no ring round a node."""
 
     rings = False
 
-    def __init__(self, cells: np.ndarray, nodes: np.ndarray, law: TractionLaw | Law3D, augmentation: float, *,
+    def __init__(self, points: InterfacePoints, law: TractionLaw | Law3D, augmentation: float, *,
                  name: str = "cohesive", viscosity: float = 0.0):
-        points = corner_points(nodes, cells)
+        """points: :func:`corner_points` of the set's cells."""
         super().__init__(points, law, augmentation, junction=np.zeros(points.n, dtype=bool), name=name,
                          viscosity=viscosity)
-        self.n_cells = cells.shape[0]
+        self.n_cells = points.segments.shape[0]
         self.n_extra = self.dim * self.n_cells
         self._carried = np.zeros((points.n, self.dim))  # r e_a of the last commit, mean-free per cell [Pa]
         self._size = np.bincount(points.cell, points.weight, minlength=self.n_cells)
@@ -133,8 +138,3 @@ class CornerRP(CohesiveRP):
         """The corners' deviations' energy sum w_a |T_a - lambda|^2 / (2 r) [J/m, J] at the committed state."""
         dev = self._deviations(u)
         return float(0.5 * np.sum(self.points.weight * np.einsum("pi,pi->p", dev, dev)) / self.aug)
-
-    def separated(self, fraction: float) -> tuple[np.ndarray, float]:
-        """As :meth:`CornerEP.separated`."""
-        hit = self.law.separated(self.state, fraction)
-        return held_pairs_separated(self.points, hit), float(self.points.weight[hit].sum())

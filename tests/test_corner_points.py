@@ -14,8 +14,7 @@ from conftest import EVERY_EDGE, check_cohesive_tangent, check_tied_every_edge, 
 from rockfrac.api import make_case, run
 from rockfrac.case.build import build
 from rockfrac.case.schema import CaseError, parse_case
-from rockfrac.case.shares import cut_shares
-from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points, held_pairs_separated
+from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points, held_pairs_separated, holding_pairs
 from rockfrac.mesh import rock_tests as rt
 from rockfrac.mesh.interfaces import tied_nodes
 from rockfrac.output.csvout import read_csv
@@ -108,6 +107,34 @@ def test_a_pair_is_separated_only_where_all_its_corner_points_are():
     np.testing.assert_array_equal(held_pairs_separated(pts, hit), [[0, 3], [1, 4]])
 
 
+def test_a_pair_split_between_ranks_is_separated_only_where_no_rank_holds_it():
+    """Two quads either side of a crack of two edges; the edges' cells on two MPI ranks share the middle
+    pair (1, 4). Each rank separates the pairs all of whose points it holds are gone, and names those
+    it still holds: the fragments are those of the whole set, whichever rank's points go first."""
+    from rockfrac.mesh.mesh import Mesh
+    from rockfrac.output.fragments import Fragments
+
+    nodes = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]] * 2 + [[0.0, -1.0], [1.0, -1.0], [2.0, -1.0],
+                                                                  [0.0, 1.0], [1.0, 1.0], [2.0, 1.0]])
+    cells = np.array([[6, 7, 1, 0], [7, 8, 2, 1], [3, 4, 10, 9], [4, 5, 11, 10]])  # below (0-2), above (3-5)
+    interfaces = np.array([[0, 1, 3, 4], [1, 2, 4, 5]])
+    mesh = Mesh(nodes=nodes, cells=cells, cell_type="quad4", interfaces=interfaces)
+    frag = Fragments(mesh)
+    pts = corner_points(nodes, interfaces)
+    pts.index = np.arange(pts.n)
+    ranks = [pts.subset(pts.cell == c) for c in (0, 1)]
+    # each hit pattern, and the pieces if each rank's separated pairs were taken as they are
+    for hit, naive in (([True, True, True, False], 1), ([True, True, False, True], 2), ([False, True, True, True], 1),
+                       ([True, True, True, True], 2)):
+        hit = np.array(hit)
+        whole = frag.pieces(held_pairs_separated(pts, hit)).count
+        mine = [hit[r.index] for r in ranks]
+        sep = np.concatenate([held_pairs_separated(r, h) for r, h in zip(ranks, mine)])
+        held = np.concatenate([holding_pairs(r, h) for r, h in zip(ranks, mine)])
+        assert frag.pieces(sep, held).count == whole == (2 if hit.all() else 1)
+        assert frag.pieces(sep).count == naive  # rank 0 lost the middle pair, rank 1 holds it
+
+
 def test_rp_corners_rock_a_block_as_nodal_points_do(tmp_path):
     """A block on one horizontal surface (8 edges), pressed, then pushed sideways at its top: the heel
     opens in tension while the toe is pressed. RP corner points follow nodal RP points through the
@@ -146,14 +173,12 @@ def test_rp_corner_points_follow_ep_corner_points_where_nodal_rp_points_stall(ru
 
 
 def test_corner_points_refuse_what_they_do_not_do(tmp_path):
-    """Refused by name before any step: IMPL-EX (integration or fallback), and MPI ranks."""
+    """Refused by name before any step: IMPL-EX (integration or fallback)."""
     with pytest.raises(CaseError, match="points = 'corners' takes each cell's own normal"):
         parse_case(dict(EVERY_EDGE, cohesive=dict(EP_CORNERS, integration="implex")))
     data = dict(EVERY_EDGE, cohesive=EP_CORNERS, solver={"fallback": "implex"})
     with pytest.raises(CaseError, match="fallback = 'implex' is for points = 'nodes'"):
         build(parse_case(data))
-    with pytest.raises(CaseError, match="points = 'corners' runs on one process"):
-        cut_shares(parse_case(dict(EVERY_EDGE, cohesive=RP_CORNERS)), "<case>", 2, lambda mesh: None)
 
 
 def test_rp_corner_points_carry_the_disc_to_its_splitting_load(tmp_path):

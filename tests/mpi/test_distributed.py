@@ -289,10 +289,10 @@ def inclusion_case(form: str = "ep") -> dict:
     return case
 
 
-def on_edges(case: dict, nx: int | None = None) -> dict:
-    """The case with its cohesive set's points on its edges (the specimen on nx x 2 nx quads if given:
-    the paper's crack then crosses nx cells, one edge each)."""
-    case["cohesive"]["points"] = "edges"
+def on_edges(case: dict, nx: int | None = None, points: str = "edges") -> dict:
+    """The case with its cohesive set's points on its edges, or at their corners (the specimen on
+    nx x 2 nx quads if given: the paper's crack then crosses nx cells, one edge each)."""
+    case["cohesive"]["points"] = points
     if nx is not None:
         case["mesh"].update(nx=nx, ny=2 * nx)
     return case
@@ -317,6 +317,11 @@ CASES = {
     "paper_rp_edges": lambda: on_edges(paper_case("rp", axial_steps=60, axial_displacement=1.5e-3), 6),
     "every_edge_rp_edges": lambda: on_edges(dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
                                                  output={"picture": False, "vtk": False, "points": False})),
+    # corner points (rockfrac.elements.cse_corners): each cell's corners and RP multipliers on its rank
+    "paper_rp_corners": lambda: on_edges(paper_case("rp", axial_steps=60, axial_displacement=1.5e-3), 6, "corners"),
+    "every_edge_rp_corners": lambda: on_edges(dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
+                                                   output={"picture": False, "vtk": False, "points": False}),
+                                              points="corners"),
     "splitting_path": splitting_case,
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
@@ -407,8 +412,9 @@ DISPLACEMENTS = {"inclusion_smoothed_rp": 1e-6}  # compared on the displacements
 # pinned point cycled for 19 iterations instead of 2, and the run took 159 in all against the ranks'
 # 140, every step on the same solution (1e-9). So the totals may also differ by one step's budget.
 # The RP edge points (the paper's crack, every edge held shut) converge some of their held steps in 1
-# iteration, others in 2, by the same round-off test, on one process and on 2 ranks alike.
-CHATTY = {"cmod_opening", "paper_rp", "paper_rp_edges", "every_edge_rp_edges", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
+# iteration, others in 2, by the same round-off test, on one process and on 2 ranks alike; so do the
+# RP corner points (171 iterations on one process, 170 on 2 ranks, 171 on 3).
+CHATTY = {"cmod_opening", "paper_rp", "paper_rp_edges", "paper_rp_corners", "every_edge_rp_edges", "bar_arc_length_rp", "bar_arc_length", "inclusion_smoothed_rp"}
 
 
 # on 2 ranks only: the heaviest, and those whose 3 ranks repeat others' (cohesive surfaces and path
@@ -990,6 +996,42 @@ def test_edge_points_on_ranks_write_the_serial_points_csv(tmp_path, form):
     edges = len(set(pts["point"]))
     assert edges == int(build(parse_case(case, "edges.toml")).cohesives[0].points.n) >= 6
     assert "plastic" in pts["state"]
+
+
+def test_corner_points_on_ranks_separate_a_specimen_as_one_process_does(tmp_path):
+    """`mpiexec -n 2 rockfrac run` of a wide specimen (80 x 20 mm, 8 x 2 quads) whose horizontal crack,
+    RP corner points of a bilinear law, is pulled open to full separation: the crack's cells (and their
+    multipliers) on both ranks, its middle node pair on an edge of each; history.csv (the fragments and
+    the separated length included) and points.csv as a serial run's, two pieces at the end, and the
+    dissipation G_c W. (Which rank's points of a shared pair hold: test_corner_points.py.)"""
+    from rockfrac.case.build import resolve
+    from rockfrac.case.build_mesh import insert_cohesive, make_mesh
+    from rockfrac.mesh.partition import partition
+
+    width, gc = 0.08, 100.0
+    case = {"mesh": {"kind": "specimen", "width": width, "height": 0.02, "crack": True, "crack_angle": 0.0, "nx": 8,
+                     "ny": 1},
+            "bulk": {"E": 1e10, "nu": 0.2},
+            "cohesive": {"law": "bilinear", "form": "rp", "sigma_c": 1e6, "Gc": gc, "points": "corners",
+                         "augmentation": 1e14},
+            "stages": [{"name": "pull", "steps": 50, "control": "path", "max_steps": 3000,
+                        "displacement": {"bottom": {"x": 0.0, "y": 0.0}, "top": {"x": 0.0, "y": 1e-3}},
+                        "stop": {"quantity": "R_top_y", "below_peak_fraction": 1e-6}}],
+            "output": {"points": True, "vtk": False, "picture": False}}
+    path = case_file(case, tmp_path / "pull.toml", tmp_path / "serial")
+    done = rockfrac_on_ranks(2, path, tmp_path / "mpi")
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
+    for name in ("history.csv", "points.csv"):
+        assert_same_table(read_csv(tmp_path / "mpi" / name), read_csv(tmp_path / "serial" / name), name)
+    h = {k: np.array(v, dtype=float) for k, v in read_csv(tmp_path / "mpi" / "history.csv").items()
+         if k in ("n_fragments", "separated", "D_surface_law")}
+    assert h["n_fragments"][0] == 1 and h["n_fragments"][-1] == 2
+    assert h["separated"][-1] == pytest.approx(width, rel=1e-12)
+    assert h["D_surface_law"][-1] == pytest.approx(gc * width, rel=1e-9)
+    resolved = resolve(parse_case(case), "pull.toml")
+    mesh, cells = insert_cohesive(resolved, make_mesh(resolved, "pull.toml"), "pull.toml")
+    ranks = partition(mesh, 2).interface_part[cells[0]]
+    assert set(ranks) == {0, 1}  # the crack's cells on both ranks
 
 
 def test_a_resume_mid_stage_keeps_each_ranks_start_of_a_newly_held_side(tmp_path):

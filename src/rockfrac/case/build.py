@@ -201,14 +201,15 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
             points, total, junction = mine.points, mine.total, mine.junction
             if mine.owners is not None:
                 extra_part.append(mine.owners)
-            if mine.owner_counts is not None:
-                extra_counts.append(mine.owner_counts)
-                own_extras.append(offset + np.asarray(points.index))
-                offset += total
         groups = cohesive_groups(section, points, mesh, f"cohesive {k + 1}", path, case.solver.fallback, junction)
         for g in groups:
             if isinstance(g, CohesiveRP):  # the multipliers are numbered over the whole set, on every rank
                 g.total_points = total if share is not None else g.points.n
+                counts = share.cohesive[k].owner_counts if share is not None else None
+                if counts is not None:
+                    extra_counts.append(counts)
+                    own_extras.append(offset + g.multiplier_blocks())
+                    offset += g.extra_span() // g.dim
         cohesives += groups
     extras = [c for g in bulks for c in g.companions()]  # a nodal crack's cut cells and unknowns
     held = [g for g in extras if isinstance(g, HeldEnrichment)]

@@ -25,7 +25,6 @@ from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
 from rockfrac.case.schema import Case
 from rockfrac.elements.interface_points import InterfacePoints
-from rockfrac.errors import CaseError
 from rockfrac.mesh.interfaces import at_junctions, looped_pairs_by_set, tied_nodes
 from rockfrac.mesh.mesh import Mesh
 from rockfrac.mesh.partition import Partition, RankPartition
@@ -38,16 +37,16 @@ from rockfrac.output.history import Monitor
 class CohesiveShare:
     """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
     group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
-    points each rank has (their multipliers' blocks; beside nodal cracks, whose enrichments are
-    numbered knowing every one's rank, each point's rank), which of the rank's points sit at a
+    multiplier blocks each rank has (a block per point, or per cell for corner points; beside nodal
+    cracks, whose enrichments are numbered knowing every one's rank, each block's rank), which of the rank's points sit at a
     junction (a node split into three copies or more, in the whole mesh) and which lie on loops of
     pairs of every set (:func:`looped_pairs_by_set`)."""
 
     points: InterfacePoints
     total: int
     minus_group: np.ndarray  # the bulk group (material) of the cells round each point's minus node, the last
-    owner_counts: np.ndarray | None = None  # rigid-plastic: the set's points on each rank
-    owners: np.ndarray | None = None  # rigid-plastic beside nodal cracks: each point's rank
+    owner_counts: np.ndarray | None = None  # rigid-plastic: the set's multiplier blocks on each rank
+    owners: np.ndarray | None = None  # rigid-plastic beside nodal cracks: each block's rank
     junction: np.ndarray | None = None
     on_loops: np.ndarray | None = None  # rigid-plastic: which of the rank's points lie on loops of pairs
 
@@ -92,19 +91,17 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
     root = tied_nodes(mesh) if rigid else None
     sets = []
-    for j, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
-        if section.points == "corners":
-            raise CaseError(f"{path}: [cohesive] (cohesive {j + 1}): points = 'corners' runs on one process, not yet "
-                            "on MPI ranks: run it serially, or take points = 'nodes', 'edges' or 'faces'")
+    for section, cells in zip(case.cohesive_sets, set_cells):
         points = set_points(section, mesh, cells, root)
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
         nodal_rp = section.form is CohesiveForm.rp and section.points == "nodes"  # facet points: no junction term
         junction = at_junctions(mesh, points.minus, root) if nodal_rp else None
-        sets.append((section, cells, points, where, junction))
+        # each multiplier block's rank (RP): a point's own, or a cell's for corner points (one per cell)
+        lams = where[points.segment_points[:, 0]] if section.points == "corners" else where
+        sets.append((section, cells, points, where, junction, lams))
     loops = None  # rigid-plastic surfaces: the pairs of every set on loops round a node (run.log warns)
     if rigid:
-        loops = looped_pairs_by_set([p.minus for _, _, p, _, _ in sets], [p.plus for _, _, p, _, _ in sets],
-                                    mesh.n_nodes)
+        loops = looped_pairs_by_set([s[2].minus for s in sets], [s[2].plus for s in sets], mesh.n_nodes)
     emb = case.embedded
     nodal = emb is not None and emb.kinematics == "nodal"
     enrichment = None
@@ -157,17 +154,17 @@ def _shares(case: Case, mesh: Mesh, part: Partition, cutter: Cutter, sets: list,
     blocks = part.node_blocks()
     for r in range(n_ranks):
         held = [cells[((where[p.segment_points] == r) & (p.segment_points >= 0)).any(axis=1)]
-                for _, cells, p, where, _ in sets]
+                for _, cells, p, where, _, _ in sets]
         own = part.cell_part == r
         piece = cutter.piece(np.concatenate([np.flatnonzero(own), near.of(mesh, own)]),
                              np.concatenate([np.flatnonzero(part.interface_part == r)] + held))
         ids = piece.place.nodes  # type: ignore[union-attr]
         coh = []
-        for k, (section, _, p, where, junction) in enumerate(sets):
+        for k, (section, _, p, where, junction, lams) in enumerate(sets):
             rp = section.multiplier_unknowns  # numbered over the ranks
             coh.append(CohesiveShare(_on_piece(p.subset(where == r), ids), p.n, node_group[p.minus[where == r]],
-                                     np.bincount(where, minlength=n_ranks) if rp else None,
-                                     where if rp and enrichment is not None else None,
+                                     np.bincount(lams, minlength=n_ranks) if rp else None,
+                                     lams if rp and enrichment is not None else None,
                                      junction[where == r] if junction is not None else None,
                                      loops[k][where == r] if loops is not None else None))
         place = piece.place

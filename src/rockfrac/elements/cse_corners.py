@@ -14,6 +14,10 @@ With every edge split, the copies of a node are tied in rings by nodal RP pairs 
 pair, their multipliers statically indeterminate); a cell's dim constraints close no ring. Each
 corner keeps its own law state, so an edge rocked open at one end yields and softens there, as a
 node pair does.
+
+On MPI ranks every corner of a cell is on the cell's rank (its multipliers too), so the cell means are
+the rank's own; a node pair shared by cells of two ranks is separated only where neither holds it
+(:meth:`_AtCorners.holding`, which the history's fragment count subtracts).
 """
 
 from __future__ import annotations
@@ -56,6 +60,12 @@ def held_pairs_separated(points: InterfacePoints, hit: np.ndarray) -> np.ndarray
     return np.stack([gone // n, gone % n], axis=1) if gone.size else np.zeros((0, 2), dtype=np.int64)
 
 
+def holding_pairs(points: InterfacePoints, hit: np.ndarray) -> np.ndarray:
+    """The (minus, plus) pairs (k, 2) of the points not in ``hit``, each once."""
+    keep = ~hit
+    return np.unique(np.stack([points.minus[keep], points.plus[keep]], axis=1), axis=0)
+
+
 class _AtCorners:
     """What corner points change of nodal points: a pair is separated only where all its corner points are."""
 
@@ -68,6 +78,11 @@ class _AtCorners:
         (the separated points' weights) [m, m^2]."""
         hit = self.law.separated(self.state, fraction)
         return held_pairs_separated(self.points, hit), float(self.points.weight[hit].sum())
+
+    def holding(self, fraction: float) -> np.ndarray:
+        """The (minus, plus) pairs (k, 2) with a corner point that still holds (another MPI rank's
+        cells may have separated the pair's other points)."""
+        return holding_pairs(self.points, self.law.separated(self.state, fraction))
 
 
 class CornerEP(_AtCorners, CohesiveEP):
@@ -86,37 +101,45 @@ class CornerRP(_AtCorners, CohesiveRP):
         """points: :func:`corner_points` of the set's cells."""
         super().__init__(points, law, augmentation, junction=np.zeros(points.n, dtype=bool), name=name,
                          viscosity=viscosity)
-        self.n_cells = points.segments.shape[0]
+        self.corners = points.segments.shape[1] // 2
+        # the cells' indices in the whole set (an MPI rank holds some), and each point's cell among them
+        self._cells, self._local = np.unique(points.cell, return_inverse=True)
+        self.n_cells = self._cells.shape[0]
         self.n_extra = self.dim * self.n_cells
         self._carried = np.zeros((points.n, self.dim))  # r e_a of the last commit, mean-free per cell [Pa]
-        self._size = np.bincount(points.cell, points.weight, minlength=self.n_cells)
+        self._size = np.bincount(self._local, points.weight, minlength=self.n_cells)
 
     def set_offset(self, offset: int) -> None:
-        """Number the cells' multipliers from ``offset`` on: cell c's are offset + dim c + (0..dim-1)."""
+        """Number the cells' multipliers from ``offset`` on: cell c's are offset + dim c + (0..dim-1), c its
+        index in the whole set (on every MPI rank)."""
         self.offset = offset
         self.lam_dofs = offset + self.dim * self.points.cell[:, None] + np.arange(self.dim)
         self.dofs = np.hstack([self.jump_dofs, self.lam_dofs])
 
+    def multiplier_blocks(self) -> np.ndarray:
+        """The cells whose multipliers this group holds, by their index in the whole set."""
+        return self._cells
+
     def extra_span(self) -> int:
-        return self.dim * self.n_cells
+        return self.dim * (self.total_points // self.corners)
 
     def redundant_extras(self, dirichlet: np.ndarray) -> np.ndarray:
         """Cell multipliers whose constraint the Dirichlet conditions impose: both nodes of every corner
         pair held in that component (their rows would be empty)."""
         d = self.dim
         held = np.isin(self.jump_dofs, dirichlet)
-        first = np.searchsorted(self.points.cell, np.arange(self.n_cells))
+        first = np.searchsorted(self._local, np.arange(self.n_cells))
         out = []
         for a in range(d):
-            free = np.bincount(self.points.cell, ~(held[:, a] & held[:, d + a]), minlength=self.n_cells)
+            free = np.bincount(self._local, ~(held[:, a] & held[:, d + a]), minlength=self.n_cells)
             out.append(self.lam_dofs[first[free == 0], a])
         return np.concatenate(out).astype(np.int64)
 
     def _cell_mean(self, v: np.ndarray) -> np.ndarray:
         """Each point's cell's weighted mean of v (n_pts, dim)."""
         total = np.zeros((self.n_cells, v.shape[1]))
-        np.add.at(total, self.points.cell, self.points.weight[:, None] * v)
-        return (total / self._size[:, None])[self.points.cell]
+        np.add.at(total, self._local, self.points.weight[:, None] * v)
+        return (total / self._size[:, None])[self._local]
 
     def _deviations(self, u: np.ndarray) -> np.ndarray:
         """T_a - lambda at the committed tractions, mean-free per cell (n_pts, dim) global [Pa]."""

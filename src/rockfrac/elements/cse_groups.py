@@ -116,6 +116,11 @@ class _CohesiveGroup(ElementGroup):
         return (np.stack([self.points.minus[hit], self.points.plus[hit]], axis=1),
                 float(self.points.weight[hit].sum()))
 
+    def holding(self, fraction: float) -> np.ndarray:
+        """The (minus, plus) pairs (k, 2) this group holds that another MPI rank's points of the same
+        pair might call separated: none, a pair's points are all on one rank (corner points: some)."""
+        return np.zeros((0, 2), dtype=np.int64)
+
     def surface_energy(self) -> float:
         """sum w x the law's own dissipation per unit area [J] (an account independent of the time
         integration of ``dissipated``)."""
@@ -433,6 +438,10 @@ class CohesiveRP(_CohesiveGroup):
     def renumber(self, numbering) -> None:
         super().renumber(numbering)
         self.lam_dofs = numbering.local(self.lam_dofs)
+
+    def multiplier_blocks(self) -> np.ndarray:
+        """The points whose multipliers (dim each) this group holds, by their index in the whole set."""
+        return np.asarray(self.points.index)
 
     def extra_span(self) -> int:
         return self.dim * self.total_points

@@ -70,9 +70,12 @@ class Fragments:
         """One integer per node pair, whichever node is listed first."""
         return pairs.min(axis=1) * self.n_nodes + pairs.max(axis=1)
 
-    def pieces(self, separated: np.ndarray) -> Pieces:
-        """The fragments when the (k, 2) (minus, plus) pairs ``separated`` no longer hold."""
+    def pieces(self, separated: np.ndarray, held: np.ndarray | None = None) -> Pieces:
+        """The fragments when the (k, 2) (minus, plus) pairs ``separated`` no longer hold, but for those
+        also in ``held`` (a pair some other points still hold: corner points on another MPI rank)."""
         keys = np.unique(self._keys(np.asarray(separated, dtype=np.int64).reshape(-1, 2)))
+        if held is not None and held.size:
+            keys = np.setdiff1d(keys, self._keys(np.asarray(held, dtype=np.int64).reshape(-1, 2)))
         tag = keys.tobytes()
         if self._last is not None and self._last[0] == tag:  # no point broke since the last state
             return self._last[1]

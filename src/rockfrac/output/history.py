@@ -264,13 +264,16 @@ class History:
         row.update(crack_columns(self.model.groups, rec, self.means, self.model))
         if self.counts_fragments:
             mine = [g.separated(self.separated_fraction) for g in self.surfaces]
-            pairs = np.concatenate([p for p, _ in mine] + [np.zeros((0, 2), dtype=np.int64)])
+            none = np.zeros((0, 2), dtype=np.int64)
+            pairs = np.concatenate([p for p, _ in mine] + [none])
+            held = np.concatenate([g.holding(self.separated_fraction) for g in self.surfaces] + [none])
             if self.mesh.place is not None:  # the whole mesh's node numbers
-                pairs = self.mesh.place.nodes[pairs]
+                pairs, held = self.mesh.place.nodes[pairs], self.mesh.place.nodes[held]
             every = self.model.gather_lead(pairs)  # to the rank that counts the pieces
+            every_held = self.model.gather_lead(held)
             if self.fragments is not None:
-                assert every is not None
-                self.pieces = self.fragments.pieces(np.concatenate(every))
+                assert every is not None and every_held is not None
+                self.pieces = self.fragments.pieces(np.concatenate(every), np.concatenate(every_held))
             row["n_fragments"] = self.model.share(self.pieces.count if self.pieces is not None else 0)
             row["separated"] = self.model.reduce_sum(sum(a for _, a in mine)) / self.thickness
         row["time"] = info.stage_index + info.load_factor

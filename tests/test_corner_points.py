@@ -4,6 +4,7 @@ each corner of each interface cell with its own state; RP with one multiplier pe
 from __future__ import annotations
 
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from conftest import EVERY_EDGE, check_cohesive_tangent, check_tied_every_edge, 
 from rockfrac.api import make_case, run
 from rockfrac.case.build import build
 from rockfrac.case.schema import CaseError, parse_case
+from rockfrac.case.shares import cut_shares
 from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points, held_pairs_separated, holding_pairs
 from rockfrac.mesh import rock_tests as rt
 from rockfrac.mesh.interfaces import tied_nodes
@@ -173,12 +175,30 @@ def test_rp_corner_points_follow_ep_corner_points_where_nodal_rp_points_stall(ru
 
 
 def test_corner_points_refuse_what_they_do_not_do(tmp_path):
-    """Refused by name before any step: IMPL-EX (integration or fallback)."""
+    """Refused by name before any step: IMPL-EX (integration or fallback), and RP on a surface of triangles
+    (the joint of examples/rock_tests/triaxial: 138 faces on 83 node pairs), whose cells' multipliers its
+    pairs cannot determine (it stopped at its first steps, "RP return map failed", its multipliers MPa
+    off), on one process and on MPI ranks (rank 0's whole set); RP faces likewise."""
     with pytest.raises(CaseError, match="points = 'corners' takes each cell's own normal"):
         parse_case(dict(EVERY_EDGE, cohesive=dict(EP_CORNERS, integration="implex")))
     data = dict(EVERY_EDGE, cohesive=EP_CORNERS, solver={"fallback": "implex"})
     with pytest.raises(CaseError, match="fallback = 'implex' is for points = 'nodes'"):
         build(parse_case(data))
+    triaxial = Path(__file__).resolve().parents[1] / "examples" / "rock_tests" / "triaxial"
+    joint = tomllib.loads((triaxial / "joint.toml").read_text())
+    joint["mesh"]["file"] = str(triaxial / joint["mesh"]["file"])
+    coh = joint["cohesive"]
+    coh.update(form="rp", augmentation=coh.pop("kn"))
+    coh.pop("kt")
+    for points in ("corners", "faces"):
+        coh["points"] = points
+        with pytest.raises(CaseError, match=f"points = '{points}' .* 138 cells share 83 node pairs, which leave the "
+                                            "multipliers of 55 of them undetermined"):
+            build(parse_case(joint))
+        with pytest.raises(CaseError, match="55 of them undetermined"):
+            cut_shares(parse_case(joint), "<case>", 2, lambda mesh: None)
+    coh["points"] = "nodes"
+    assert build(parse_case(joint)).cohesives[0].n_extra == 3 * 83
 
 
 def test_rp_corner_points_carry_the_disc_to_its_splitting_load(tmp_path):

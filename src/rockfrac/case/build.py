@@ -14,6 +14,7 @@ import numpy as np
 
 from rockfrac.case.build_groups import (  # noqa: F401 (re-exported: the case -> objects helpers)
     AUGMENTATION_SAFETY,
+    check_cell_multipliers,
     cohesive_groups,
     cut_given_cracks,
     default_augmentation,
@@ -195,6 +196,7 @@ def build(case: Case, path: str = "<case>", distribution: Distribution | None = 
         if share is None:
             cells = set_cells[k]
             points = set_points(section, mesh, cells, root)
+            check_cell_multipliers(section, points, f"cohesive {k + 1}", path)
             total = points.n
         else:  # the rank's points (on the rank of their first interface cell), from rank 0
             mine = share.cohesive[k]

@@ -12,7 +12,7 @@ from rockfrac.case.cohesive_section import CohesiveCommon, CohesiveForm
 from rockfrac.case.materials import BulkModel, BulkSection, EmbeddedSection
 from rockfrac.case.mesh_section import MeshKind
 from rockfrac.case.schema import Case
-from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points
+from rockfrac.elements.cse_corners import CornerEP, CornerRP, corner_points, undetermined_cells
 from rockfrac.elements.cse_facets import FacetEP, FacetRP, facet_points
 from rockfrac.elements.cse_groups import CohesiveEP, CohesiveRP
 from rockfrac.elements.cse_nested import CohesiveRPNested
@@ -112,6 +112,24 @@ def set_points(section: CohesiveCommon, mesh: Mesh, cells: np.ndarray, root: np.
         return points
     root = tied_nodes(mesh) if root is None else root
     return smoothed_normals(points, root[points.minus], angle)
+
+
+def check_cell_multipliers(section: CohesiveCommon, points: InterfacePoints, name: str, path: str) -> None:
+    """RP with one multiplier set per interface cell (points = 'corners', 'edges', 'faces') needs the
+    cells' node pairs to determine them (:func:`undetermined_cells`); refused by name otherwise, on the
+    whole set, before any step."""
+    if section.form is not CohesiveForm.rp or section.points == "nodes" or section.multipliers == "nested":
+        return
+    loose = undetermined_cells(points.segments)
+    if loose:
+        m = points.segments.shape[1] // 2
+        pairs = np.stack([points.segments[:, :m].ravel(), points.segments[:, m:].ravel()], axis=1)
+        n_pairs = np.unique(pairs[pairs[:, 0] != pairs[:, 1]], axis=0).shape[0]
+        raise CaseError(f"{path}: [cohesive] ({name}): form = 'rp' with points = {section.points!r} fixes the mean jump "
+                        f"of each interface cell by its own multipliers, but these {points.segments.shape[0]} cells "
+                        f"share {n_pairs} node pairs, which leave the multipliers of {loose} of them undetermined (a "
+                        "singular saddle point: a surface of triangles has about two faces per node). Take "
+                        "points = 'nodes' (a multiplier per node pair), or form = 'ep'")
 
 
 def cohesive_groups(section, points, mesh: Mesh, name: str, path: str = "<case>", fallback: str = "none",

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from rockfrac.case.build_groups import is_embedded, material_cells, set_points
+from rockfrac.case.build_groups import check_cell_multipliers, is_embedded, material_cells, set_points
 from rockfrac.case.build_mesh import insert_cohesive, make_mesh
 from rockfrac.case.build_program import check_boundary_groups, resolve_monitors
 from rockfrac.case.cohesive_section import CohesiveForm
@@ -91,8 +91,9 @@ def cut_shares(case: Case, path: str, n_ranks: int, split) -> tuple[Mesh, Iterat
     rigid = any(section.form is CohesiveForm.rp for section in case.cohesive_sets)
     root = tied_nodes(mesh) if rigid else None
     sets = []
-    for section, cells in zip(case.cohesive_sets, set_cells):
+    for k, (section, cells) in enumerate(zip(case.cohesive_sets, set_cells)):
         points = set_points(section, mesh, cells, root)
+        check_cell_multipliers(section, points, f"cohesive {k + 1}", path)
         where = part.interface_part[cells[points.cell]]  # each point on the rank of its first interface cell
         nodal_rp = section.form is CohesiveForm.rp and section.points == "nodes"  # facet points: no junction term
         junction = at_junctions(mesh, points.minus, root) if nodal_rp else None

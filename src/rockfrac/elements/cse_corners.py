@@ -23,6 +23,8 @@ the rank's own; a node pair shared by cells of two ranks is separated only where
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import structural_rank
 
 from rockfrac.elements.base import Evaluation
 from rockfrac.elements.cse_facets import facet_points
@@ -49,6 +51,23 @@ def corner_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
                            frame=np.repeat(facets.frame, m, axis=0), x=nodes[cells[:, :m]].reshape(k * m, -1),
                            cell=np.repeat(np.arange(k), m), segments=cells,
                            segment_points=np.arange(k * m).reshape(k, m), segment_x=facets.segment_x)
+
+
+def undetermined_cells(cells: np.ndarray) -> int:
+    """How many of the interface cells' (k, 2 m) multipliers, one set per cell fixing the mean jump of its
+    corners' node pairs, those pairs cannot determine: k less the structural rank of the cells x pairs
+    incidence (a pair whose two nodes are one, at a crack's tip, has no jump). Zero on a line of edges
+    or a surface of quadrilaterals; a surface of triangles has about two faces per node (the P1-P0
+    pairing of mixed methods), so its saddle point is singular."""
+    cells = np.asarray(cells, dtype=np.int64)
+    k, m = cells.shape[0], cells.shape[1] // 2
+    minus, plus = cells[:, :m].ravel(), cells[:, m:].ravel()
+    split = minus != plus
+    n = int(cells.max(initial=-1)) + 1
+    _, pair = np.unique(minus[split] * n + plus[split], return_inverse=True)
+    rows = np.repeat(np.arange(k), m)[split]
+    incidence = sp.csr_matrix((np.ones(rows.shape[0]), (rows, pair.ravel())), shape=(k, int(pair.max(initial=-1)) + 1))
+    return k - int(structural_rank(incidence)) if k else 0
 
 
 def held_pairs_separated(points: InterfacePoints, hit: np.ndarray) -> np.ndarray:

@@ -322,6 +322,7 @@ CASES = {
     "every_edge_rp_corners": lambda: on_edges(dict(EVERY_EDGE, cohesive=dict(table1.CSE_LAW, form="rp", where="all"),
                                                    output={"picture": False, "vtk": False, "points": False}),
                                               points="corners"),
+    "joint_ep_corners": lambda: on_edges(joint_case(), points="corners"),  # 3D: a tetrahedral mesh's joint faces
     "splitting_path": splitting_case,
     # embedded cracks: tracked across the ranks' cells (24 cells cut), and untracked
     "band_local": band_case,
@@ -424,7 +425,8 @@ CHATTY = {"cmod_opening", "paper_rp", "paper_rp_edges", "paper_rp_corners", "eve
 # grown nodal band: its enrichment's cuts announced across 2 ranks and its 3-rank launch of the
 # CLI below). Three oversubscribed ranks take 7-8 s beyond their start on a bar that one process runs
 # in 0.7 s, 8 s on the locally tracked band, 16 s on the nodal one (measured 2026-11-30).
-SLOW = {"breakout_initial", "band_3d_nonlocal", "band_nodal_tets", "plane_nodal_3d", "grains_ep", "cmod_opening",
+# The joint's EP corner points: 3D corners on 2 ranks (their 2D RP cases run on 3).
+SLOW = {"joint_ep_corners", "breakout_initial", "band_3d_nonlocal", "band_nodal_tets", "plane_nodal_3d", "grains_ep", "cmod_opening",
         "bar_arc_length", "bar_energy", "bar_arc_length_rp", "band_none", "band_local", "joint_2d_cracks",
         "band_nodal", "inclusion_smoothed_ep", "inclusion_smoothed_rp"}
 
@@ -519,6 +521,8 @@ def test_distributed_history_equals_serial(name, n):
         # the first yield (a path step located as a load step)
     elif name.startswith("every_edge_rp"):
         assert ser["iterations"].max() == 2  # held shut: a linear step, its correction and the check
+    elif name == "joint_ep_corners":
+        assert ser["iterations"].max() == 3  # the joint yields, then slides (two iterations a step)
     elif name == "inclusion_smoothed_ep":
         assert ser["iterations"].max() == 2  # the boundary yields (an elastic step takes one iteration)
     elif name == "inclusion_smoothed_rp":

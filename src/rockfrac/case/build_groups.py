@@ -120,11 +120,8 @@ def check_cell_multipliers(section: CohesiveCommon, points: InterfacePoints, nam
     whole set, before any step."""
     if section.form is not CohesiveForm.rp or section.points == "nodes" or section.multipliers == "nested":
         return
-    loose = undetermined_cells(points.segments)
+    loose, n_pairs = undetermined_cells(points.segments)
     if loose:
-        m = points.segments.shape[1] // 2
-        pairs = np.stack([points.segments[:, :m].ravel(), points.segments[:, m:].ravel()], axis=1)
-        n_pairs = np.unique(pairs[pairs[:, 0] != pairs[:, 1]], axis=0).shape[0]
         raise CaseError(f"{path}: [cohesive] ({name}): form = 'rp' with points = {section.points!r} fixes the mean jump "
                         f"of each interface cell by its own multipliers, but these {points.segments.shape[0]} cells "
                         f"share {n_pairs} node pairs, which leave the multipliers of {loose} of them undetermined (a "

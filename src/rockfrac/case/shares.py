@@ -38,9 +38,9 @@ class CohesiveShare:
     """A rank's points of one cohesive set (on its piece's nodes), how many the set has, the bulk
     group on each point's minus side (its in-situ stress), and for a rigid-plastic set how many
     multiplier blocks each rank has (a block per point, or per cell for corner points; beside nodal
-    cracks, whose enrichments are numbered knowing every one's rank, each block's rank), which of the rank's points sit at a
-    junction (a node split into three copies or more, in the whole mesh) and which lie on loops of
-    pairs of every set (:func:`looped_pairs_by_set`)."""
+    cracks, whose enrichments are numbered knowing every one's rank, each block's rank), which of the
+    rank's points sit at a junction (a node split into three copies or more, in the whole mesh) and
+    which lie on loops of pairs of every set (:func:`looped_pairs_by_set`)."""
 
     points: InterfacePoints
     total: int

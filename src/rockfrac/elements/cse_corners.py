@@ -53,12 +53,12 @@ def corner_points(nodes: np.ndarray, cells: np.ndarray) -> InterfacePoints:
                            segment_points=np.arange(k * m).reshape(k, m), segment_x=facets.segment_x)
 
 
-def undetermined_cells(cells: np.ndarray) -> int:
+def undetermined_cells(cells: np.ndarray) -> tuple[int, int]:
     """How many of the interface cells' (k, 2 m) multipliers, one set per cell fixing the mean jump of its
     corners' node pairs, those pairs cannot determine: k less the structural rank of the cells x pairs
-    incidence (a pair whose two nodes are one, at a crack's tip, has no jump). Zero on a line of edges
-    or a surface of quadrilaterals; a surface of triangles has about two faces per node (the P1-P0
-    pairing of mixed methods), so its saddle point is singular."""
+    incidence (a pair whose two nodes are one, at a crack's tip, has no jump); and how many split pairs
+    there are. Zero on a line of edges or a surface of quadrilaterals; a surface of triangles has about
+    two faces per node (the P1-P0 pairing of mixed methods), so its saddle point is singular."""
     cells = np.asarray(cells, dtype=np.int64)
     k, m = cells.shape[0], cells.shape[1] // 2
     minus, plus = cells[:, :m].ravel(), cells[:, m:].ravel()
@@ -66,8 +66,9 @@ def undetermined_cells(cells: np.ndarray) -> int:
     n = int(cells.max(initial=-1)) + 1
     _, pair = np.unique(minus[split] * n + plus[split], return_inverse=True)
     rows = np.repeat(np.arange(k), m)[split]
-    incidence = sp.csr_matrix((np.ones(rows.shape[0]), (rows, pair.ravel())), shape=(k, int(pair.max(initial=-1)) + 1))
-    return k - int(structural_rank(incidence)) if k else 0
+    n_pairs = int(pair.max(initial=-1)) + 1
+    incidence = sp.csr_matrix((np.ones(rows.shape[0]), (rows, pair.ravel())), shape=(k, n_pairs))
+    return (k - int(structural_rank(incidence)) if k else 0), n_pairs
 
 
 def held_pairs_separated(points: InterfacePoints, hit: np.ndarray) -> np.ndarray:

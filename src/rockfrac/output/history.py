@@ -266,8 +266,9 @@ class History:
             mine = [g.separated(self.separated_fraction) for g in self.surfaces]
             none = np.zeros((0, 2), dtype=np.int64)
             pairs = np.concatenate([p for p, _ in mine] + [none])
-            held = np.concatenate([g.holding(self.separated_fraction) for g in self.surfaces] + [none])
-            if self.mesh.place is not None:  # the whole mesh's node numbers
+            held = none  # one process: separated() has the whole of every pair
+            if self.mesh.place is not None:  # an MPI rank: the pairs it still holds, in the whole mesh's node numbers
+                held = np.concatenate([g.holding(self.separated_fraction) for g in self.surfaces] + [none])
                 pairs, held = self.mesh.place.nodes[pairs], self.mesh.place.nodes[held]
             every = self.model.gather_lead(pairs)  # to the rank that counts the pieces
             every_held = self.model.gather_lead(held)

@@ -131,10 +131,13 @@ def saved_runs(saved: Path, specimen: str, size: float) -> dict:
     if old.get("size") != size:
         return {}
     default = 1e-4 if specimen == "disc" else 1e-3  # the rows before the displacement was a choice
+    cpu = old.get("machine", {}).get("cpu")  # the rows before each kept its own: the file's machine
     rows = {}
     for v in old.get("runs", {}).values():
         if "variant" in v:
             v.setdefault("displacement_m", default)
+            if cpu is not None:
+                v.setdefault("cpu", cpu)
             rows[run_key(v)] = v
     return rows
 
@@ -332,7 +335,7 @@ def main() -> None:
             viscous = float(h["D_viscous"][-1]) if "D_viscous" in h else 0.0
             split = np.flatnonzero(h["n_fragments"] >= 2)  # the first step with the body in pieces
             pieces = read_csv(out / "fragments.csv") if (out / "fragments.csv").exists() else None
-            rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"],
+            rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"], "cpu": machine()["cpu"],
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
                    "segments": len(json.loads((out / "segments.json").read_text())), "note": args.note,
@@ -359,13 +362,19 @@ def main() -> None:
         return
     # read now, not at the start: an invocation running beside this one may have added its rows since
     record["runs"] = {**saved_runs(saved, args.specimen, size), **added}
+    publish_runs(name, record, args.specimen)
+
+
+def publish_runs(name: str, record: dict, specimen: str) -> None:
+    """The table of ``record``'s runs (ordered by variant, displacement, stop and step count) into results/<name>.json
+    and README.md."""
     order = {"ep": 0, "ep viscous": 1, "rp": 2, "rp viscous": 3}
     rows, labels = [], []
     ordered = sorted(record["runs"].values(), key=lambda r: (order[r["variant"]], r.get("displacement_m", 0.0),
                                                              -r.get("stop_fraction", 0.5), r["nominal_steps"]))
     for rec in ordered:
         v = rec["variant"]
-        eta = rec.get("viscosity") or VISCOSITY[args.specimen]
+        eta = rec.get("viscosity") or VISCOSITY[specimen]
         label = v.upper() if not v.endswith("viscous") else f"{v.split()[0].upper()}, viscosity {eta:g}, load control"
         label += f", r = {rec['augmentation']:g} Pa/m" if rec.get("augmentation") else ""
         label += f", kn = {rec['penalty']:g} Pa/m" if rec.get("penalty") else ""
@@ -391,10 +400,22 @@ def main() -> None:
                             "u end / u at peak", "in pieces from step (F / peak)", "ended", "linear solver",
                             "ran (date, load)"],
                            rows)
-    m = record["machine"]
     notes = [f"{label}: {rec['note']}" for label, rec in zip(labels, ordered) if rec.get("note")]
-    publish(name, record, lines, footer=f"{m['cpu']}, {m['cores']} cores; each row's date and load average (at its "
-            "end) are its own run's." + "".join(f" {n}" + ("" if n.endswith(".") else ".") for n in notes))
+    publish(name, record, lines, footer=machines_line(record["machine"], labels, ordered)
+            + "".join(f" {n}" + ("" if n.endswith(".") else ".") for n in notes))
+
+
+def machines_line(m: dict, labels: list[str], rows: list[dict]) -> str:
+    """The table's footer: the CPU of its rows (each row's own; where they differ, which rows ran on which),
+    the cores, and that each row's date and load average are its own run's."""
+    cpus = [rec.get("cpu", m["cpu"]) for rec in rows]
+    if len(set(cpus)) <= 1:
+        return f"{cpus[0] if cpus else m['cpu']}, {m['cores']} cores; each row's date and load average (at its end) are its own run's."
+    common = max(set(cpus), key=cpus.count)
+    other = "; ".join(f"{c}: {', '.join(lab for lab, c2 in zip(labels, cpus) if c2 == c)}"
+                      for c in dict.fromkeys(cpus) if c != common)
+    return (f"{m['cores']} cores; each row's date and load average (at its end) are its own run's. {common} for every "
+            f"row but these ({other}).")
 
 
 if __name__ == "__main__":

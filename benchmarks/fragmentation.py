@@ -335,7 +335,8 @@ def main() -> None:
             viscous = float(h["D_viscous"][-1]) if "D_viscous" in h else 0.0
             split = np.flatnonzero(h["n_fragments"] >= 2)  # the first step with the body in pieces
             pieces = read_csv(out / "fragments.csv") if (out / "fragments.csv").exists() else None
-            rec = {"variant": variant, "nominal_steps": steps, "date": machine()["date"], "cpu": machine()["cpu"],
+            here = machine()
+            rec = {"variant": variant, "nominal_steps": steps, "date": here["date"], "cpu": here["cpu"],
                    "load_average": os.getloadavg()[0], "points": points, "steps": int(s.result.steps), "iterations": int(its.sum()),
                    "iterations_per_step": float(its.mean()), "implex_from_step": switched, "wall_s": wall,
                    "segments": len(json.loads((out / "segments.json").read_text())), "note": args.note,
@@ -409,14 +410,13 @@ def machines_line(m: dict, labels: list[str], rows: list[dict]) -> str:
     """The table's footer: the CPU of its rows (each row's own; where they differ, which rows ran on which),
     the cores, and that each row's date and load average are its own run's."""
     cpus = [rec.get("cpu", m["cpu"]) for rec in rows]
+    own = "each row's date and load average (at its end) are its own run's."
     if len(set(cpus)) <= 1:
-        return f"{cpus[0] if cpus else m['cpu']}, {m['cores']} cores; each row's date and load average (at its end) are its own run's."
-    common = max(set(cpus), key=cpus.count)
+        return f"{cpus[0] if cpus else m['cpu']}, {m['cores']} cores; {own}"
+    common = max(dict.fromkeys(cpus), key=cpus.count)  # the most rows' (the first of a tie)
     other = "; ".join(f"{c}: {', '.join(lab for lab, c2 in zip(labels, cpus) if c2 == c)}"
                       for c in dict.fromkeys(cpus) if c != common)
-    return (f"{m['cores']} cores; each row's date and load average (at its end) are its own run's. {common} for every "
-            f"row but these ({other}).")
-
+    return f"{m['cores']} cores; {own} {common} for every row but these ({other})."
 
 if __name__ == "__main__":
     main()

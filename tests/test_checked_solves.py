@@ -3,6 +3,8 @@ refined with its own factors, else solved again by another backend, which takes 
 the run at the third matrix where it is accurate (PARDISO's static pivoting on RP saddle points,
 benchmarks/README.md "Fragmentation")."""
 
+import warnings
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -64,8 +66,50 @@ def test_relative_residual():
     assert relative_residual(a, np.array([1.0, 0.0]), b) == pytest.approx(4.0 / np.hypot(2.0, 4.0), rel=1e-15)
     assert relative_residual(a, np.array([0.5, 0.0]), np.zeros(2)) == 1.0  # b = 0: the residual itself
     assert relative_residual(a, np.array([np.nan, 1.0]), b) == np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warning, and inf rather than NaN
+        assert relative_residual(a, np.array([1e300, -1e300]), b) == np.inf
+        big = sp.csr_matrix(np.array([[1e300, 1e300], [0.0, 1.0]]))
+        assert relative_residual(big, np.array([1e10, -1e10]), b) == np.inf  # inf - inf in A x
     two = np.column_stack([b, 2 * b])  # path following's two right-hand sides
     assert relative_residual(a, np.column_stack([[1.0, 1.0], [2.0, 2.0]]), two) == 0.0
+
+
+class _Scaled:
+    def __init__(self, lu, scale):
+        self.lu, self.scale = lu, scale
+
+    def solve(self, b):
+        return self.scale * self.lu.solve(b)
+
+
+class Blowup(linear.SuperLU):
+    """A backend off by a factor: ``scale`` 1e305 makes A x overflow (as PARDISO's perturbed factors
+    did on the disc's RP saddle points, residuals to 1e143 and beyond)."""
+
+    name = "blowup"
+    dense_up_to = 0
+
+    def __init__(self, scale: float):
+        self.scale = scale
+
+    def _factorize(self, a):
+        return _Scaled(spla.splu(a.tocsc()), self.scale)
+
+
+def test_of_two_inaccurate_solves_the_better_stands_also_where_the_first_overflows(saddle):
+    """First's solution overflows A x (its residual inf, not NaN): then's, inaccurate but finite and
+    better, is the one returned; where then's is the worse, first's stands."""
+    b = np.random.default_rng(3).standard_normal(saddle.shape[0])
+    exact = spla.spsolve(saddle.tocsc(), b)
+    # off by 2.5 and 3 (residuals 1.5 and 2): refinement with such factors does not contract
+    for first, then, expected in ((Blowup(1e305), Blowup(2.5), 2.5 * exact), (Blowup(2.5), Blowup(3.0), 2.5 * exact)):
+        solver = Checked(first, then)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            x = solver.solve(saddle, b)
+        assert np.allclose(x, expected, rtol=1e-9, atol=1e-12 * np.abs(exact).max())
+        assert solver.off == 1 and not solver.handed_over
 
 
 def test_an_inaccurate_solve_is_solved_again_and_the_accurate_backend_takes_over_at_the_third(saddle):

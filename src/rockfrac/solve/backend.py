@@ -38,12 +38,15 @@ class LinearSolver(Protocol):
 
 
 def relative_residual(a: sp.csr_matrix, x: np.ndarray, b: np.ndarray) -> float:
-    """||b - A x|| / ||b|| (2-norms over all columns; ||b - A x|| where b = 0); inf if x is not finite."""
+    """||b - A x|| / ||b|| (2-norms over all columns; ||b - A x|| where b = 0); inf if x is not finite
+    or A x overflows (a solve off by 1e150 and more: a NaN here would compare as no worse than any)."""
     if not np.all(np.isfinite(x)):
         return float("inf")
-    r = np.linalg.norm(np.asarray(b).reshape(x.shape) - a @ x)
-    nb = np.linalg.norm(b)
-    return float(r / nb if nb > 0 else r)
+    with np.errstate(over="ignore", invalid="ignore"):
+        r = np.linalg.norm(np.asarray(b).reshape(x.shape) - a @ x)
+        nb = np.linalg.norm(b)
+        res = r / nb if nb > 0 else r
+    return float(res) if np.isfinite(res) else float("inf")
 
 
 class _DenseLU:

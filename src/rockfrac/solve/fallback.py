@@ -203,7 +203,7 @@ def _refined(factor: Factorization, a: sp.csr_matrix, b: np.ndarray, x: np.ndarr
     while steps < REFINE_STEPS and res > accuracy:
         trial = x + factor.solve(np.asarray(b).reshape(x.shape) - a @ x)
         res_trial = relative_residual(a, trial, b)
-        if not res_trial <= 0.5 * res:  # not contracting (or not finite): the factors are too far off
+        if not (res_trial < res and res_trial <= 0.5 * res):  # not contracting (or inf): the factors are too far off
             break
         x, res, steps = trial, res_trial, steps + 1
     return x, res, steps

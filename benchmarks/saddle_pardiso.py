@@ -12,7 +12,9 @@ Newton right-hand side, kept from runs whose linear solves are SuperLU's (accura
   everywhere.toml made RP, as tests/test_rock_tests.py runs it): its first ``--disc`` systems (3,664 rows).
 Each backend then solves each set in order, as the Newton loop does: analysed and factorized at
 each load step's first system, refactorized on that analysis for the step's others (PARDISO's
-matching is computed at the analysis), one solve each. Reported: the median refactorization and solve, the relative residual
+matching is computed at the analysis; without the matching the analysis reads the pattern only and,
+since 2026-12-03, is kept from step to step, so its "analysis" column times a refactorization after
+the first step), one solve each. Reported: the median refactorization and solve, the relative residual
 |A x - b| / |b| of the solves (median, largest), how many are above 1e-6 (the accuracy
 ``rockfrac.solve.fallback.Checked`` asks for) and how many remain above it after the checked
 solve's refinement with the backend's own factors. Results go to results/saddle_pardiso.json and
@@ -152,7 +154,7 @@ def measure(backend, systems: list) -> dict:
     analysed, refactor, solve, raw, after = [], [], [], [], []
     for k, (a, b, new_step) in enumerate(systems):
         if new_step:
-            backend.begin_step()  # PARDISO analyses afresh (its matching from this matrix), as in a run
+            backend.begin_step()  # matched PARDISO analyses afresh (its matching from this matrix), as in a run
         t0 = time.perf_counter()
         factor = backend.factorize(a)
         t1 = time.perf_counter()

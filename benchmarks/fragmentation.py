@@ -418,5 +418,6 @@ def machines_line(m: dict, labels: list[str], rows: list[dict]) -> str:
                       for c in dict.fromkeys(cpus) if c != common)
     return f"{m['cores']} cores; {own} {common} for every row but these ({other})."
 
+
 if __name__ == "__main__":
     main()
